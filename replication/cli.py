@@ -1,0 +1,97 @@
+"""``replicate``: the Hydra entry point (spec/cli-and-results.md).
+
+The only module that sees a DictConfig. Each experiment config names a ``runner``
+(``module:function``); the runner receives the resolved config as a plain dict and the
+output folder, returns its result keys, and this module adds the common keys and writes
+``result.json`` atomically.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import hydra
+from omegaconf import DictConfig, OmegaConf
+
+from replication.errors import InputError
+from replication.provenance import code_hash, config_hash
+from replication.results import package_versions, write_json_atomic
+
+CONFIG_DIR = str(Path(__file__).resolve().parent.parent / "configs")
+
+
+def available_experiments():
+    """Names of the experiment configs in ``configs/experiment``."""
+    return sorted(p.stem for p in (Path(CONFIG_DIR) / "experiment").glob("*.yaml"))
+
+
+def resolve_runner(spec):
+    """Import ``module:function``."""
+    module_name, _, function_name = spec.partition(":")
+    return getattr(importlib.import_module(module_name), function_name)
+
+
+def check_writable(out):
+    """Refuse an output folder that cannot be created or written, before any work."""
+    out = Path(out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(dir=out, prefix=".write-probe-")
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as error:
+        raise InputError(f"out={out}: cannot write there ({error.strerror or error})") from None
+
+
+def run_experiment(config, out):
+    """Run the experiment described by the plain-dict ``config``; return the result dict."""
+    if not config.get("runner"):
+        raise InputError(
+            "no experiment chosen: pass experiment=NAME, one of " + ", ".join(available_experiments())
+        )
+    runner = resolve_runner(config["runner"])
+    check_writable(out)
+    start = time.perf_counter()
+    result = runner(config, Path(out))
+    wall = time.perf_counter() - start
+    payload = {
+        "experiment": config.get("name"),
+        "config": config,
+        "seed": config.get("seed"),
+        "versions": package_versions(),
+        "wall_seconds": wall,
+        "provenance": {"config_sha256": config_hash(config), "code_sha256": code_hash()},
+    }
+    payload.update(result)
+    write_json_atomic(Path(out) / "result.json", payload)
+    return payload
+
+
+@hydra.main(config_path=CONFIG_DIR, config_name="config", version_base="1.3")
+def _hydra_main(cfg: DictConfig):
+    try:
+        config = OmegaConf.to_container(cfg, resolve=True, throw_on_missing=True)
+        out = config.pop("out")
+        config["out"] = out
+        run_experiment(config, out)
+    except InputError as error:
+        print(f"error: {error}", file=sys.stderr)
+        sys.exit(2)
+    except FileNotFoundError as error:
+        print(f"error: {error.filename}: file not found", file=sys.stderr)
+        sys.exit(2)
+    print(f"wrote {Path(out) / 'result.json'}", file=sys.stderr)
+
+
+def main():
+    """Console-script entry point."""
+    _hydra_main()
+
+
+if __name__ == "__main__":
+    main()

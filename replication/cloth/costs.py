@@ -1,0 +1,97 @@
+"""The paper's costs (section 3.3; spec/cloth-model.md "Costs").
+
+Frame ``t+1`` is predicted from the recorded state at frame ``t`` by one model step;
+``e_t = sum_p |x^_p - x_p|^2 + dtc^2 |v^_p - v_p|^2``, divided by ``n^2 h^2``. The full cost
+sums ``e_t`` over 50 consecutive frames, the small cost uses one frame (default 150).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from replication.cloth import kernels
+from replication.cloth.mesh import observed_lengths
+from replication.cloth.model import ClothParams
+from replication.errors import InputError
+
+SMALL_FRAME = 150
+FULL_START = 100
+FULL_WINDOW = 50
+
+
+def structural_length(trajectory):
+    """``h`` for normalising costs: mean structural spring length in the first frame
+    (exactly the contract's ``h`` for data that starts from the flat sheet)."""
+    lengths = observed_lengths(trajectory.positions[0], trajectory.n)
+    return float(lengths[:2].mean())
+
+
+def cost_frames(kind, n_frames, *, frame=SMALL_FRAME, start=FULL_START, window=FULL_WINDOW):
+    """Frames ``t`` whose prediction of ``t+1`` enters the cost.
+
+    ``kind`` is ``"small"`` (one frame) or ``"full"`` (``window`` frames from ``start``).
+    """
+    if kind == "small":
+        frames = np.array([frame])
+    elif kind == "full":
+        if window < 1:
+            raise InputError(f"cost.window={window}: expected at least 1 frame")
+        frames = np.arange(start, start + window)
+    else:
+        raise InputError(f"cost.kind={kind!r}: expected 'small' or 'full'")
+    if frames.min() < 0 or frames.max() > n_frames - 2:
+        raise InputError(
+            f"cost frame index t={int(frames.max() if frames.max() > 0 else frames.min())} "
+            f"is outside the data: t and t+1 must be frames of the {n_frames}-frame file "
+            f"(0 <= t <= {n_frames - 2})"
+        )
+    return frames.astype(np.int64)
+
+
+class ClothCost:
+    """One-step prediction cost of a parameter population on a recorded trajectory.
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+    frames : (F,) int array_like
+        Values of ``t``; each predicts frame ``t+1`` from the recorded frame ``t``.
+    dtc : float, optional
+        The paper's "arbitrary coefficient" on velocity errors (default: the data's dt).
+    h : float, optional
+        Normalisation length (default: :func:`structural_length`).
+    """
+
+    def __init__(self, trajectory, frames, *, dtc=None, h=None):
+        self.trajectory = trajectory
+        self.scene = trajectory.scene()
+        self.frames = np.ascontiguousarray(frames, dtype=np.int64)
+        cost_frames_checked = (self.frames.min() >= 0
+                               and self.frames.max() <= trajectory.n_frames - 2)
+        if not cost_frames_checked:
+            raise InputError(f"cost frames {self.frames.min()}..{self.frames.max()} outside "
+                             f"0..{trajectory.n_frames - 2} of {trajectory.source}")
+        self.dtc = float(trajectory.dt if dtc is None else dtc)
+        self.h = float(structural_length(trajectory) if h is None else h)
+        self.norm = trajectory.n ** 2 * self.h ** 2
+        self.xs = np.ascontiguousarray(trajectory.flat_positions())
+        self.vs = np.ascontiguousarray(trajectory.flat_velocities())
+
+    def frame_errors(self, params: ClothParams):
+        """Normalised ``e_t`` per individual and frame, shape (pop, F); ``inf`` if the
+        prediction is not finite."""
+        errors = kernels.one_step_errors(self.xs, self.vs, self.frames, params.rest,
+                                         params.k, params.tau, self.dtc,
+                                         *self.scene.kernel_args())
+        return errors / self.norm
+
+    def __call__(self, params: ClothParams):
+        """Cost per individual, shape (pop,)."""
+        return self.frame_errors(params).sum(axis=1)
+
+
+def make_cost(trajectory, kind="small", *, frame=SMALL_FRAME, start=FULL_START,
+              window=FULL_WINDOW, dtc=None, h=None):
+    """The paper's small (``kind="small"``) or full (``kind="full"``) cost on ``trajectory``."""
+    frames = cost_frames(kind, trajectory.n_frames, frame=frame, start=start, window=window)
+    return ClothCost(trajectory, frames, dtc=dtc, h=h)

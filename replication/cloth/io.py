@@ -1,0 +1,227 @@
+"""Cloth trajectory files (spec/data-formats.md): one ``.npz`` per trajectory.
+
+The reader refuses a bad file with one line naming the file, the field, what was found and
+what was expected. The writer is deterministic: the same arrays give the same bytes.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from replication.cloth.model import Scene, make_scene
+from replication.errors import InputError
+
+REQUIRED = ("positions", "dt", "mass", "gravity", "pinned")
+OPTIONAL = ("damping", "velocities", "meta")
+_FIXED_ZIP_TIME = (1980, 1, 1, 0, 0, 0)
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """A recorded cloth trajectory. ``positions`` and ``velocities`` are (T, n, n, 3)."""
+
+    positions: np.ndarray
+    dt: float
+    mass: np.ndarray              # scalar () or (n, n)
+    gravity: np.ndarray           # (3,)
+    pinned: np.ndarray            # (k, 2) int
+    damping: float = 0.0
+    velocities: np.ndarray | None = None
+    meta: dict = field(default_factory=dict)
+    source: str = "<memory>"
+
+    @property
+    def n(self):
+        return self.positions.shape[1]
+
+    @property
+    def n_frames(self):
+        return self.positions.shape[0]
+
+    def flat_positions(self):
+        """Positions as (T, n*n, 3)."""
+        return self.positions.reshape(self.n_frames, self.n * self.n, 3)
+
+    def flat_velocities(self):
+        """Velocities as (T, n*n, 3): the recorded ones, else (x_t - x_{t-1}) / dt, v_0 = 0."""
+        if self.velocities is not None:
+            return self.velocities.reshape(self.n_frames, self.n * self.n, 3)
+        x = self.flat_positions()
+        v = np.zeros_like(x)
+        v[1:] = (x[1:] - x[:-1]) / self.dt
+        return v
+
+    def scene(self):
+        """The model's :class:`Scene` for this data (mesh size, masses, pins, gravity, dt)."""
+        return make_scene(self.n, dt=self.dt, mass=self.mass, gravity=self.gravity,
+                          damping=self.damping, pinned=self.pinned)
+
+
+def _fail(path, key, found, expected):
+    raise InputError(f"{path}: field '{key}': found {found}; expected {expected}")
+
+
+def _finite(path, key, array):
+    if not np.all(np.isfinite(array)):
+        bad = int(np.size(array) - np.count_nonzero(np.isfinite(array)))
+        _fail(path, key, f"{bad} NaN or inf value(s)", "finite numbers")
+
+
+def _real(path, key, array):
+    if array.dtype == object or not (np.issubdtype(array.dtype, np.number)
+                                     or array.dtype == np.bool_):
+        _fail(path, key, f"dtype {array.dtype}", "a real numeric array")
+    if np.iscomplexobj(array):
+        _fail(path, key, f"dtype {array.dtype}", "real numbers")
+    return array.astype(float)
+
+
+def read_trajectory(path):
+    """Read and validate a trajectory ``.npz``.
+
+    Raises
+    ------
+    InputError
+        One line naming the file, the field, what was found and what was expected.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise InputError(f"{path}: no such file; expected a trajectory .npz "
+                         "(shared/spec/data-formats.md)")
+    if path.is_dir():
+        raise InputError(f"{path}: is a folder; expected a trajectory .npz file")
+    try:
+        with np.load(path, allow_pickle=False) as archive:
+            raw = {key: archive[key] for key in archive.files}
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as error:
+        reason = str(error).splitlines()[0] if str(error) else type(error).__name__
+        raise InputError(f"{path}: cannot be read as .npz ({reason}); expected a trajectory "
+                         "file as in shared/spec/data-formats.md") from None
+    for key in REQUIRED:
+        if key not in raw:
+            _fail(path, key, "no such key (keys: " + ", ".join(sorted(raw)) + ")",
+                  "a required key of a trajectory file")
+
+    positions = _real(path, "positions", raw["positions"])
+    if positions.ndim != 4 or positions.shape[3] != 3 or positions.shape[1] != positions.shape[2]:
+        _fail(path, "positions", f"shape {positions.shape}", "(T, n, n, 3)")
+    n_frames, n = positions.shape[0], positions.shape[1]
+    if n_frames < 3:
+        _fail(path, "positions", f"T = {n_frames} frames", "T >= 3")
+    if n < 3:
+        _fail(path, "positions", f"n = {n} particles per side", "n >= 3")
+    _finite(path, "positions", positions)
+
+    dt = _real(path, "dt", raw["dt"])
+    if dt.shape != ():
+        _fail(path, "dt", f"shape {dt.shape}", "a scalar")
+    _finite(path, "dt", dt)
+    if dt <= 0:
+        _fail(path, "dt", f"{float(dt)}", "a time step > 0")
+
+    mass = _real(path, "mass", raw["mass"])
+    if mass.shape not in ((), (n, n)):
+        _fail(path, "mass", f"shape {mass.shape}", f"a scalar or ({n}, {n})")
+    _finite(path, "mass", mass)
+    if np.any(mass <= 0):
+        _fail(path, "mass", f"minimum {float(mass.min())}", "masses > 0")
+
+    gravity = _real(path, "gravity", raw["gravity"])
+    if gravity.shape != (3,):
+        _fail(path, "gravity", f"shape {gravity.shape}", "(3,)")
+    _finite(path, "gravity", gravity)
+
+    pinned = raw["pinned"]
+    if not np.issubdtype(pinned.dtype, np.integer):
+        _fail(path, "pinned", f"dtype {pinned.dtype}", "integers (i, j)")
+    if pinned.ndim != 2 or pinned.shape[1] != 2:
+        _fail(path, "pinned", f"shape {pinned.shape}", "(k, 2)")
+    outside = (pinned < 0) | (pinned >= n)
+    if np.any(outside):
+        row = pinned[np.any(outside, axis=1)][0]
+        _fail(path, "pinned", f"index ({row[0]}, {row[1]})",
+              f"indices inside the {n}x{n} mesh (0..{n - 1})")
+    pinned = pinned.astype(np.int64)
+
+    damping = 0.0
+    if "damping" in raw:
+        value = _real(path, "damping", raw["damping"])
+        if value.shape != ():
+            _fail(path, "damping", f"shape {value.shape}", "a scalar")
+        _finite(path, "damping", value)
+        if value < 0:
+            _fail(path, "damping", f"{float(value)}", "a damping coefficient >= 0")
+        damping = float(value)
+
+    velocities = None
+    if "velocities" in raw:
+        velocities = _real(path, "velocities", raw["velocities"])
+        if velocities.shape != positions.shape:
+            _fail(path, "velocities", f"shape {velocities.shape}",
+                  f"the shape of positions {positions.shape}")
+        _finite(path, "velocities", velocities)
+
+    meta = {}
+    if "meta" in raw:
+        try:
+            meta = json.loads(str(raw["meta"]))
+        except json.JSONDecodeError as error:
+            _fail(path, "meta", f"invalid JSON ({error.msg})", "a JSON string")
+        if not isinstance(meta, dict):
+            _fail(path, "meta", f"JSON {type(meta).__name__}", "a JSON object")
+
+    return Trajectory(positions=positions, dt=float(dt), mass=mass, gravity=gravity,
+                      pinned=pinned, damping=damping, velocities=velocities, meta=meta,
+                      source=str(path))
+
+
+def write_npz_deterministic(path, arrays):
+    """Write ``arrays`` (name -> array) as an uncompressed ``.npz`` with fixed zip times,
+    so that identical arrays always give identical bytes."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp")
+    with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_STORED) as archive:
+        for name in sorted(arrays):
+            buffer = io.BytesIO()
+            np.lib.format.write_array(buffer, np.asarray(arrays[name]), allow_pickle=False)
+            info = zipfile.ZipInfo(f"{name}.npy", date_time=_FIXED_ZIP_TIME)
+            info.external_attr = 0o644 << 16
+            archive.writestr(info, buffer.getvalue())
+    tmp.replace(path)
+
+
+def write_trajectory(path, trajectory):
+    """Write a :class:`Trajectory` as spec/data-formats.md says (deterministic bytes)."""
+    arrays = {
+        "positions": np.asarray(trajectory.positions, dtype=float),
+        "dt": np.float64(trajectory.dt),
+        "mass": np.asarray(trajectory.mass, dtype=float),
+        "gravity": np.asarray(trajectory.gravity, dtype=float),
+        "pinned": np.asarray(trajectory.pinned, dtype=np.int64),
+        "damping": np.float64(trajectory.damping),
+        "meta": np.array(json.dumps(trajectory.meta, sort_keys=True)),
+    }
+    if trajectory.velocities is not None:
+        arrays["velocities"] = np.asarray(trajectory.velocities, dtype=float)
+    write_npz_deterministic(path, arrays)
+
+
+def trajectory_from_rollout(positions, scene: Scene, *, meta=None, velocities=None):
+    """Wrap simulated positions (T, n*n, 3) as a :class:`Trajectory` of ``scene``."""
+    n = scene.n
+    positions = np.asarray(positions).reshape(-1, n, n, 3)
+    mass = scene.mass.reshape(n, n)
+    if np.all(mass == mass.flat[0]):
+        mass = np.float64(mass.flat[0])
+    return Trajectory(positions=positions, dt=scene.dt, mass=mass, gravity=scene.gravity,
+                      pinned=scene.pinned, damping=scene.damping,
+                      velocities=None if velocities is None else
+                      np.asarray(velocities).reshape(-1, n, n, 3),
+                      meta=dict(meta or {}))

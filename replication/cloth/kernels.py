@@ -1,0 +1,170 @@
+"""Compiled kernels of the cloth step (numba). One implementation of the step.
+
+``_step_into`` is the whole time step of spec/cloth-model.md for one parameter set;
+the drivers below run it over a population (``prange``), over time (rollouts) or over
+recorded frames (one-step prediction errors for the paper's costs).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+
+@njit(cache=True, fastmath=False, nogil=True)
+def _step_into(x, v, rest, k, tau, sa, sb, st, free, mass, gravity, damping, dt,
+               force, corr, count, x_out, v_out):
+    """One semi-implicit Euler step with Provot's deformation constraint.
+
+    x, v : (P, 3) state at time t; rest, k, tau : (6,) per spring type;
+    sa, sb, st : (S,) spring ends and types; free : (P,) bool; mass : (P,);
+    force, corr : (P, 3) and count : (P,) scratch; x_out, v_out : (P, 3) results.
+    """
+    n_particles = x.shape[0]
+    n_springs = sa.shape[0]
+    for p in range(n_particles):
+        for c in range(3):
+            force[p, c] = mass[p] * gravity[c] - damping * v[p, c]
+    # spring forces f_a = k (L - l) d / L, f_b = -f_a
+    for s in range(n_springs):
+        a = sa[s]
+        b = sb[s]
+        t = st[s]
+        d0 = x[b, 0] - x[a, 0]
+        d1 = x[b, 1] - x[a, 1]
+        d2 = x[b, 2] - x[a, 2]
+        length = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        if length > 0.0:
+            scale = k[t] * (length - rest[t]) / length
+            force[a, 0] += scale * d0
+            force[a, 1] += scale * d1
+            force[a, 2] += scale * d2
+            force[b, 0] -= scale * d0
+            force[b, 1] -= scale * d1
+            force[b, 2] -= scale * d2
+    # 1-2: v' = v + dt F / m (zero on pinned), x' = x + dt v'
+    for p in range(n_particles):
+        for c in range(3):
+            if free[p]:
+                vel = v[p, c] + dt * force[p, c] / mass[p]
+            else:
+                vel = 0.0
+            x_out[p, c] = x[p, c] + dt * vel
+            corr[p, c] = 0.0
+        count[p] = 0.0
+    # 3: one Jacobi pass of the deformation constraint on x'
+    for s in range(n_springs):
+        a = sa[s]
+        b = sb[s]
+        t = st[s]
+        d0 = x_out[b, 0] - x_out[a, 0]
+        d1 = x_out[b, 1] - x_out[a, 1]
+        d2 = x_out[b, 2] - x_out[a, 2]
+        length = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        limit = (1.0 + tau[t]) * rest[t]
+        if length > limit:
+            excess = (length - limit) / length
+            free_a = free[a]
+            free_b = free[b]
+            if free_a and free_b:
+                share = 0.5 * excess
+                corr[a, 0] += share * d0
+                corr[a, 1] += share * d1
+                corr[a, 2] += share * d2
+                corr[b, 0] -= share * d0
+                corr[b, 1] -= share * d1
+                corr[b, 2] -= share * d2
+                count[a] += 1.0
+                count[b] += 1.0
+            elif free_a:
+                corr[a, 0] += excess * d0
+                corr[a, 1] += excess * d1
+                corr[a, 2] += excess * d2
+                count[a] += 1.0
+            elif free_b:
+                corr[b, 0] -= excess * d0
+                corr[b, 1] -= excess * d1
+                corr[b, 2] -= excess * d2
+                count[b] += 1.0
+    # 3 (end) and 4: mean of the proposals; v'' = (x'' - x) / dt, zero on pinned
+    for p in range(n_particles):
+        if count[p] > 0.0:
+            for c in range(3):
+                x_out[p, c] += corr[p, c] / count[p]
+        for c in range(3):
+            if free[p]:
+                v_out[p, c] = (x_out[p, c] - x[p, c]) / dt
+            else:
+                v_out[p, c] = 0.0
+
+
+@njit(cache=True, parallel=True)
+def step_batch(x, v, rest, k, tau, sa, sb, st, free, mass, gravity, damping, dt):
+    """One step for each row of a batch: x, v (B, P, 3); rest, k, tau (B, 6)."""
+    n_batch, n_particles = x.shape[0], x.shape[1]
+    x_out = np.empty_like(x)
+    v_out = np.empty_like(v)
+    for i in prange(n_batch):
+        force = np.empty((n_particles, 3))
+        corr = np.empty((n_particles, 3))
+        count = np.empty(n_particles)
+        _step_into(x[i], v[i], rest[i], k[i], tau[i], sa, sb, st, free, mass, gravity,
+                   damping, dt, force, corr, count, x_out[i], v_out[i])
+    return x_out, v_out
+
+
+@njit(cache=True, parallel=True)
+def rollout_batch(x0, v0, rest, k, tau, n_steps, sa, sb, st, free, mass, gravity,
+                  damping, dt):
+    """``n_steps`` steps from (x0, v0) (B, P, 3); returns positions and velocities
+    of shape (B, n_steps + 1, P, 3), frame 0 being the initial state."""
+    n_batch, n_particles = x0.shape[0], x0.shape[1]
+    xs = np.empty((n_batch, n_steps + 1, n_particles, 3))
+    vs = np.empty((n_batch, n_steps + 1, n_particles, 3))
+    for i in prange(n_batch):
+        force = np.empty((n_particles, 3))
+        corr = np.empty((n_particles, 3))
+        count = np.empty(n_particles)
+        xs[i, 0] = x0[i]
+        vs[i, 0] = v0[i]
+        for t in range(n_steps):
+            _step_into(xs[i, t], vs[i, t], rest[i], k[i], tau[i], sa, sb, st, free, mass,
+                       gravity, damping, dt, force, corr, count, xs[i, t + 1], vs[i, t + 1])
+    return xs, vs
+
+
+@njit(cache=True, parallel=True)
+def one_step_errors(xs, vs, frames, rest, k, tau, dtc, sa, sb, st, free, mass, gravity,
+                    damping, dt):
+    """Paper 3.3: predict frame t+1 from the recorded state at frame t.
+
+    xs, vs : (T, P, 3) recorded positions and velocities; frames : (F,) values of t;
+    rest, k, tau : (B, 6). Returns e : (B, F) with
+    ``e = sum_p |x^_p - x_p|^2 + dtc^2 |v^_p - v_p|^2`` (not yet normalised).
+    A non-finite prediction gives ``inf``.
+    """
+    n_batch = rest.shape[0]
+    n_frames = frames.shape[0]
+    n_particles = xs.shape[1]
+    errors = np.empty((n_batch, n_frames))
+    for job in prange(n_batch * n_frames):
+        i = job // n_frames
+        f = job % n_frames
+        t = frames[f]
+        force = np.empty((n_particles, 3))
+        corr = np.empty((n_particles, 3))
+        count = np.empty(n_particles)
+        x_hat = np.empty((n_particles, 3))
+        v_hat = np.empty((n_particles, 3))
+        _step_into(xs[t], vs[t], rest[i], k[i], tau[i], sa, sb, st, free, mass, gravity,
+                   damping, dt, force, corr, count, x_hat, v_hat)
+        total = 0.0
+        for p in range(n_particles):
+            for c in range(3):
+                dx = x_hat[p, c] - xs[t + 1, p, c]
+                dv = v_hat[p, c] - vs[t + 1, p, c]
+                total += dx * dx + dtc * dtc * dv * dv
+        if not np.isfinite(total):
+            total = np.inf
+        errors[i, f] = total
+    return errors

@@ -1,0 +1,15 @@
+"""The one exception type the command line turns into a one-line message."""
+
+
+class InputError(ValueError):
+    """Bad data or a bad config value.
+
+    The message is one line naming the file or setting, what was found and what was
+    expected; ``replicate`` prints it to stderr and exits with status 2.
+    """
+
+
+def check(condition, message):
+    """Raise :class:`InputError` with ``message`` unless ``condition`` holds."""
+    if not condition:
+        raise InputError(message)

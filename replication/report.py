@@ -1,0 +1,118 @@
+"""REPORT.md, written from results (never by hand).
+
+Every experiment config may carry a ``report`` block: ``order``, ``title`` and ``section``
+(``module:function``). The section function receives the experiment's ``result.json`` as
+a dict and returns a :class:`Section`: markdown, and rows for the summary table at the top.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from omegaconf import OmegaConf
+
+from replication.provenance import PROJECT_ROOT
+from replication.results import read_result
+
+CONFIG_DIR = PROJECT_ROOT / "configs" / "experiment"
+
+
+@dataclass
+class SummaryRow:
+    """One claim of the paper against this suite's measurement."""
+
+    claim: str
+    paper: str
+    suite: str
+    tolerance: str
+    verdict: str  # "replicated", "partly", "not replicated", "beyond the paper"
+
+
+@dataclass
+class Section:
+    markdown: str
+    summary: list[SummaryRow] = field(default_factory=list)
+
+
+def experiment_entries(config_dir=CONFIG_DIR):
+    """(order, name, report block) for every experiment config with a ``report`` block."""
+    entries = []
+    for path in sorted(Path(config_dir).glob("*.yaml")):
+        config = OmegaConf.to_container(OmegaConf.load(path))
+        block = config.get("report")
+        if block:
+            entries.append((block.get("order", 1000), config.get("name", path.stem), block))
+    return sorted(entries, key=lambda entry: (entry[0], entry[1]))
+
+
+def _call_section(spec, result):
+    module_name, _, function_name = spec.partition(":")
+    return getattr(importlib.import_module(module_name), function_name)(result)
+
+
+def command_line(result):
+    """The command that made a result (experiment name; overrides are in its config)."""
+    return f"replicate experiment={result['experiment']}"
+
+
+def fmt(value, digits=4):
+    """Numbers for tables: general format with ``digits`` significant digits."""
+    if isinstance(value, str):
+        return value
+    if value is None:
+        return "n/a"
+    return f"{value:.{digits}g}"
+
+
+def build_report(results_dir):
+    """The text of REPORT.md from the results under ``results_dir``."""
+    results_dir = Path(results_dir)
+    sections, summary, missing = [], [], []
+    for _, name, block in experiment_entries():
+        result = read_result(results_dir / name)
+        heading = f"## {block['title']}\n"
+        if result is None:
+            missing.append(name)
+            sections.append(f"{heading}\nNot run yet: `replicate experiment={name}`.\n")
+            continue
+        section = _call_section(block["section"], result)
+        footer = (f"\n_Made by `{command_line(result)}` in {result['wall_seconds']:.1f} s; "
+                  f"config in `results/{name}/result.json`._\n")
+        sections.append(heading + "\n" + section.markdown.strip() + "\n" + footer)
+        for row in section.summary:
+            summary.append((row, name))
+    lines = [
+        "# Replication report: Louchet, Boccara, Crochemore and Provot (EA'95)",
+        "",
+        "Written by `replicate-all` from the results in `results/`; do not edit by hand.",
+        "Every number below comes from a run whose resolved config is stored beside it.",
+        "",
+        "## Summary",
+        "",
+        "| claim | paper | this suite | tolerance | verdict | command |",
+        "|---|---|---|---|---|---|",
+    ]
+    for row, name in summary:
+        lines.append(f"| {row.claim} | {row.paper} | {row.suite} | {row.tolerance} | "
+                     f"{row.verdict} | `replicate experiment={name}` |")
+    if missing:
+        lines += ["", "Not run yet: " + ", ".join(f"`{name}`" for name in missing) + "."]
+    return "\n".join(lines) + "\n\n" + "\n".join(sections)
+
+
+def main(argv=None):
+    """``python -m replication.report [--results DIR] [--output REPORT.md]``."""
+    parser = argparse.ArgumentParser(description=main.__doc__)
+    parser.add_argument("--results", default="results")
+    parser.add_argument("--output", default=str(PROJECT_ROOT / "REPORT.md"))
+    args = parser.parse_args(argv)
+    text = build_report(args.results)
+    Path(args.output).write_text(text)
+    print(f"wrote {args.output}")
+
+
+if __name__ == "__main__":
+    main()

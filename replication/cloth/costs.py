@@ -76,18 +76,26 @@ class ClothCost:
         self.norm = trajectory.n ** 2 * self.h ** 2
         self.xs = np.ascontiguousarray(trajectory.flat_positions())
         self.vs = np.ascontiguousarray(trajectory.flat_velocities())
+        self._no_force = np.zeros((1, 1, self.xs.shape[1], 3))
 
-    def frame_errors(self, params: ClothParams):
+    def frame_errors(self, params: ClothParams, extra_force=None):
         """Normalised ``e_t`` per individual and frame, shape (pop, F); ``inf`` if the
-        prediction is not finite."""
+        prediction is not finite.
+
+        ``extra_force`` : (pop or 1, F or 1, n*n, 3), optional: external forces (effect
+        plug-ins) per individual and cost frame, added before integration.
+        """
+        if extra_force is None:
+            extra_force = self._no_force
+        extra_force = np.ascontiguousarray(extra_force, dtype=float)
         errors = kernels.one_step_errors(self.xs, self.vs, self.frames, params.rest,
-                                         params.k, params.tau, self.dtc,
+                                         params.k, params.tau, extra_force, self.dtc,
                                          *self.scene.kernel_args())
         return errors / self.norm
 
-    def __call__(self, params: ClothParams):
+    def __call__(self, params: ClothParams, extra_force=None):
         """Cost per individual, shape (pop,)."""
-        return self.frame_errors(params).sum(axis=1)
+        return self.frame_errors(params, extra_force).sum(axis=1)
 
 
 def make_cost(trajectory, kind="small", *, frame=SMALL_FRAME, start=FULL_START,

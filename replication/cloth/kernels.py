@@ -12,11 +12,12 @@ from numba import njit, prange
 
 
 @njit(cache=True, fastmath=False, nogil=True)
-def _step_into(x, v, rest, k, tau, sa, sb, st, free, mass, gravity, damping, dt,
+def _step_into(x, v, rest, k, tau, extra, sa, sb, st, free, mass, gravity, damping, dt,
                force, corr, count, x_out, v_out):
     """One semi-implicit Euler step with Provot's deformation constraint.
 
     x, v : (P, 3) state at time t; rest, k, tau : (6,) per spring type;
+    extra : (P, 3) external force added to gravity, damping and springs (effect plug-ins);
     sa, sb, st : (S,) spring ends and types; free : (P,) bool; mass : (P,);
     force, corr : (P, 3) and count : (P,) scratch; x_out, v_out : (P, 3) results.
     """
@@ -24,7 +25,7 @@ def _step_into(x, v, rest, k, tau, sa, sb, st, free, mass, gravity, damping, dt,
     n_springs = sa.shape[0]
     for p in range(n_particles):
         for c in range(3):
-            force[p, c] = mass[p] * gravity[c] - damping * v[p, c]
+            force[p, c] = mass[p] * gravity[c] - damping * v[p, c] + extra[p, c]
     # spring forces f_a = k (L - l) d / L, f_b = -f_a
     for s in range(n_springs):
         a = sa[s]
@@ -99,8 +100,8 @@ def _step_into(x, v, rest, k, tau, sa, sb, st, free, mass, gravity, damping, dt,
 
 
 @njit(cache=True, parallel=True)
-def step_batch(x, v, rest, k, tau, sa, sb, st, free, mass, gravity, damping, dt):
-    """One step for each row of a batch: x, v (B, P, 3); rest, k, tau (B, 6)."""
+def step_batch(x, v, rest, k, tau, extra, sa, sb, st, free, mass, gravity, damping, dt):
+    """One step for each row of a batch: x, v, extra (B, P, 3); rest, k, tau (B, 6)."""
     n_batch, n_particles = x.shape[0], x.shape[1]
     x_out = np.empty_like(x)
     v_out = np.empty_like(v)
@@ -108,8 +109,8 @@ def step_batch(x, v, rest, k, tau, sa, sb, st, free, mass, gravity, damping, dt)
         force = np.empty((n_particles, 3))
         corr = np.empty((n_particles, 3))
         count = np.empty(n_particles)
-        _step_into(x[i], v[i], rest[i], k[i], tau[i], sa, sb, st, free, mass, gravity,
-                   damping, dt, force, corr, count, x_out[i], v_out[i])
+        _step_into(x[i], v[i], rest[i], k[i], tau[i], extra[i], sa, sb, st, free, mass,
+                   gravity, damping, dt, force, corr, count, x_out[i], v_out[i])
     return x_out, v_out
 
 
@@ -125,21 +126,23 @@ def rollout_batch(x0, v0, rest, k, tau, n_steps, sa, sb, st, free, mass, gravity
         force = np.empty((n_particles, 3))
         corr = np.empty((n_particles, 3))
         count = np.empty(n_particles)
+        extra = np.zeros((n_particles, 3))
         xs[i, 0] = x0[i]
         vs[i, 0] = v0[i]
         for t in range(n_steps):
-            _step_into(xs[i, t], vs[i, t], rest[i], k[i], tau[i], sa, sb, st, free, mass,
+            _step_into(xs[i, t], vs[i, t], rest[i], k[i], tau[i], extra, sa, sb, st, free, mass,
                        gravity, damping, dt, force, corr, count, xs[i, t + 1], vs[i, t + 1])
     return xs, vs
 
 
 @njit(cache=True, parallel=True)
-def one_step_errors(xs, vs, frames, rest, k, tau, dtc, sa, sb, st, free, mass, gravity,
-                    damping, dt):
+def one_step_errors(xs, vs, frames, rest, k, tau, extra, dtc, sa, sb, st, free, mass,
+                    gravity, damping, dt):
     """Paper 3.3: predict frame t+1 from the recorded state at frame t.
 
     xs, vs : (T, P, 3) recorded positions and velocities; frames : (F,) values of t;
-    rest, k, tau : (B, 6). Returns e : (B, F) with
+    rest, k, tau : (B, 6); extra : (EB, EF, P, 3) external forces with EB in {1, B} and
+    EF in {1, F} (a size-1 axis is shared). Returns e : (B, F) with
     ``e = sum_p |x^_p - x_p|^2 + dtc^2 |v^_p - v_p|^2`` (not yet normalised).
     A non-finite prediction gives ``inf``.
     """
@@ -156,8 +159,10 @@ def one_step_errors(xs, vs, frames, rest, k, tau, dtc, sa, sb, st, free, mass, g
         count = np.empty(n_particles)
         x_hat = np.empty((n_particles, 3))
         v_hat = np.empty((n_particles, 3))
-        _step_into(xs[t], vs[t], rest[i], k[i], tau[i], sa, sb, st, free, mass, gravity,
-                   damping, dt, force, corr, count, x_hat, v_hat)
+        ei = i if extra.shape[0] > 1 else 0
+        ef = f if extra.shape[1] > 1 else 0
+        _step_into(xs[t], vs[t], rest[i], k[i], tau[i], extra[ei, ef], sa, sb, st, free, mass,
+                   gravity, damping, dt, force, corr, count, x_hat, v_hat)
         total = 0.0
         for p in range(n_particles):
             for c in range(3):

@@ -128,7 +128,7 @@ def _population_arrays(x, v, params):
     return x, v
 
 
-def step(x, v, params, scene):
+def step(x, v, params, scene, extra_force=None):
     """One time step for each member of the population (pure: inputs are not modified).
 
     Parameters
@@ -136,13 +136,20 @@ def step(x, v, params, scene):
     x, v : (pop, n*n, 3) ndarray
     params : ClothParams with arrays of shape (pop, 6)
     scene : Scene
+    extra_force : (pop, n*n, 3) ndarray, optional
+        Forces added to gravity, damping and springs before integration (effect plug-ins
+        of the discrepancy workflow); applied to free particles only.
 
     Returns
     -------
     x_next, v_next : (pop, n*n, 3) ndarray
     """
     x, v = _population_arrays(x, v, params)
-    return kernels.step_batch(x, v, params.rest, params.k, params.tau, *scene.kernel_args())
+    if extra_force is None:
+        extra_force = np.zeros_like(x)
+    extra_force = np.ascontiguousarray(np.broadcast_to(extra_force, x.shape), dtype=float)
+    return kernels.step_batch(x, v, params.rest, params.k, params.tau, extra_force,
+                              *scene.kernel_args())
 
 
 def simulate(params, scene, n_steps, x0=None, v0=None):

@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 
 import hydra
+from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
 from replication.errors import InputError
@@ -23,6 +24,9 @@ from replication.provenance import code_hash, config_hash
 from replication.results import package_versions, write_json_atomic
 
 CONFIG_DIR = str(Path(__file__).resolve().parent.parent / "configs")
+
+if not OmegaConf.has_resolver("or_default"):
+    OmegaConf.register_new_resolver("or_default", lambda value, default: value or default)
 
 
 def available_experiments():
@@ -52,7 +56,8 @@ def run_experiment(config, out):
     """Run the experiment described by the plain-dict ``config``; return the result dict."""
     if not config.get("runner"):
         raise InputError(
-            "no experiment chosen: pass experiment=NAME, one of " + ", ".join(available_experiments())
+            "no experiment chosen: pass experiment=NAME, one of "
+            + ", ".join(available_experiments())
         )
     runner = resolve_runner(config["runner"])
     check_writable(out)
@@ -76,7 +81,7 @@ def run_experiment(config, out):
 def _hydra_main(cfg: DictConfig):
     try:
         config = OmegaConf.to_container(cfg, resolve=True, throw_on_missing=True)
-        out = config.pop("out")
+        out = config["out"] or HydraConfig.get().runtime.output_dir
         config["out"] = out
         run_experiment(config, out)
     except InputError as error:
@@ -90,6 +95,15 @@ def _hydra_main(cfg: DictConfig):
 
 def main():
     """Console-script entry point."""
+    # Hydra creates the run folder (``out``) before the task runs: refuse an unwritable one
+    # here, with one line, instead of Hydra's traceback.
+    for arg in sys.argv[1:]:
+        if arg.startswith("out=") and "," not in arg:
+            try:
+                check_writable(arg[len("out="):])
+            except InputError as error:
+                print(f"error: {error}", file=sys.stderr)
+                sys.exit(2)
     _hydra_main()
 
 

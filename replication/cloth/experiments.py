@@ -9,6 +9,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
+
 from replication.cloth.costs import make_cost
 from replication.cloth.io import read_trajectory, trajectory_from_rollout, write_trajectory
 from replication.cloth.model import make_scene, params_from_vectors, reference_vector, simulate
@@ -66,3 +68,69 @@ def reference_runs(config, out):
 def load_manifest(data_dir):
     """The manifest written by :func:`reference_runs`."""
     return json.loads((Path(data_dir) / "manifest.json").read_text())
+
+
+def fig08_mesh(config, out):
+    """Paper Fig. 8: draw the mesh and its spring families; count the springs."""
+    from replication.cloth.mesh import TYPE_NAMES, flat_rest_positions, springs
+    from replication.figures import fig08_mesh as figure
+
+    n = int(config["scene"]["n"])
+    check(n >= 3, f"scene.n={n}: expected at least 3 particles per side")
+    zoom = int(config["zoom"])
+    check(2 <= zoom <= n, f"zoom={zoom}: expected 2 <= zoom <= scene.n={n}")
+    a, b, kind = springs(n)
+    scene = _scene_from_config(config["scene"])
+    path = figure.draw(Path(config["figure_dir"]) / "fig08_mesh.png",
+                       positions=flat_rest_positions(n, config["scene"]["side"]), a=a, b=b,
+                       kind=kind, pinned=scene.pinned, n=n, zoom=zoom)
+    counts = {f"{t}: {TYPE_NAMES[t]}": int((kind == t).sum()) for t in range(len(TYPE_NAMES))}
+    return {"spring_counts": counts, "n_springs": int(kind.size), "figures": [path]}
+
+
+def _rms_h(a, b, h):
+    return float(np.sqrt(np.mean(np.sum((a - b) ** 2, axis=-1))) / h)
+
+
+def fig11_reconstruction(config, out):
+    """Paper Fig. 11: the reference animation beside re-simulations from given parameters."""
+    from replication.cloth.costs import structural_length
+    from replication.figures import fig11_reconstruction as figure
+
+    path = config["data"]["path"] or config["default_data"]
+    trajectory = read_trajectory(path)
+    sets = config["reconstructions"]
+    check(len(sets) > 0, "reconstructions: expected at least one parameter set")
+    for entry in sets:
+        check(len(entry["params"]) in (5, 18),
+              f"reconstructions: '{entry['label']}' has {len(entry['params'])} parameters; "
+              "expected 5 (l01, l23, l45, K, tau) or 18")
+    frames = [int(t) for t in config["frames"]]
+    check(all(0 <= t < trajectory.n_frames for t in frames),
+          f"frames={frames}: expected frame indices in 0..{trajectory.n_frames - 1}")
+    scene = trajectory.scene()
+    recorded = trajectory.flat_positions()
+    x0 = recorded[:1]
+    v0 = trajectory.flat_velocities()[:1]
+    h = structural_length(trajectory)
+    columns, titles, rows = [recorded], ["original"], []
+    for entry in sets:
+        params = params_from_vectors(entry["params"])
+        progress(f"re-simulating '{entry['label']}'")
+        positions, _ = simulate(params, scene, trajectory.n_frames - 1, x0, v0)
+        columns.append(positions[0])
+        costs = {kind: float(make_cost(trajectory, kind, **config["cost"])(params)[0])
+                 for kind in ("small", "full")}
+        rows.append({"label": entry["label"], "params": entry["params"], **costs,
+                     "paper_cost": entry.get("paper_cost"),
+                     "rms_error_h": _rms_h(positions[0], recorded, h),
+                     "final_error_h": _rms_h(positions[0, -1], recorded[-1], h)})
+        titles.append(f"{entry['label']}\nsmall cost {costs['small']:.3g}")
+    figure_dir = Path(config["figure_dir"])
+    png = figure.draw(figure_dir / "fig11_reconstruction.png", columns=columns, titles=titles,
+                      frames=frames, n=trajectory.n, dt=trajectory.dt)
+    gif = figure.animate(figure_dir / "fig11_reconstruction.gif", columns=columns,
+                         titles=titles, frames=range(0, trajectory.n_frames,
+                                                      int(config["gif_stride"])),
+                         n=trajectory.n, dt=trajectory.dt)
+    return {"data": str(path), "h": h, "reconstructions": rows, "figures": [png, gif]}

@@ -1,0 +1,98 @@
+"""The real command line, configs and result.json (spec/cli-and-results.md)."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from hydra import compose, initialize_config_dir
+
+from replication.cli import CONFIG_DIR, available_experiments
+from replication.report import build_report, experiment_entries
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def run_cli(*overrides, cwd=ROOT):
+    command = [sys.executable, "-m", "replication.cli", *overrides]
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    return subprocess.run(command, cwd=cwd, capture_output=True, text=True, env=env,
+                          timeout=300)
+
+
+@pytest.mark.parametrize("name", available_experiments())
+def test_every_experiment_config_composes(name):
+    with initialize_config_dir(config_dir=CONFIG_DIR, version_base="1.3"):
+        cfg = compose(config_name="config", overrides=[f"experiment={name}"])
+    assert cfg.name == name, "experiment configs must set name to their file name"
+    module, _, function = cfg.runner.partition(":")
+    assert callable(getattr(__import__(module, fromlist=[function]), function))
+
+
+def test_reference_run_through_real_command_line(tmp_path):
+    out = tmp_path / "out"
+    done = run_cli("experiment=cloth_reference", f"out={out}", f"data_dir={tmp_path / 'data'}",
+                   "n_steps=160")
+    assert done.returncode == 0, done.stderr
+    result = json.loads((out / "result.json").read_text())
+    for key in ("experiment", "config", "seed", "versions", "wall_seconds", "provenance"):
+        assert key in result
+    assert result["experiment"] == "cloth_reference"
+    assert result["config"]["n_steps"] == 160
+    manifest = json.loads((tmp_path / "data" / "manifest.json").read_text())
+    assert set(manifest["files"]) == {"reference_tau0.1.npz", "reference_tau0.5.npz"}
+    # same config, same numbers and same bytes
+    again = run_cli("experiment=cloth_reference", f"out={tmp_path / 'again'}",
+                    f"data_dir={tmp_path / 'data2'}", "n_steps=160")
+    assert again.returncode == 0, again.stderr
+    second = json.loads((tmp_path / "data2" / "manifest.json").read_text())
+    assert second["files"] == manifest["files"]
+    assert json.loads((tmp_path / "again" / "result.json").read_text())["costs_at_truth"] \
+        == result["costs_at_truth"]
+
+
+def test_committed_reference_data_is_regenerated_identically(tmp_path):
+    committed = json.loads((ROOT / "synthetic_data/cloth/manifest.json").read_text())
+    done = run_cli("experiment=cloth_reference", f"out={tmp_path / 'out'}",
+                   f"data_dir={tmp_path / 'data'}")
+    assert done.returncode == 0, done.stderr
+    fresh = json.loads((tmp_path / "data" / "manifest.json").read_text())
+    assert fresh["files"] == committed["files"]
+
+
+@pytest.mark.parametrize("overrides, message", [
+    (["taus=[]"], "taus: expected at least one value"),
+    (["n_steps=1"], "n_steps=1: expected at least 2 steps"),
+    (["out=/proc/forbidden/x"], "cannot write there"),
+    ([], "no experiment chosen"),
+])
+def test_bad_config_gives_one_line_and_no_result(tmp_path, overrides, message):
+    args = list(overrides)
+    if args != []:
+        args = ["experiment=cloth_reference", f"data_dir={tmp_path / 'data'}", *args]
+    if not any(a.startswith("out=") for a in args):
+        args.append(f"out={tmp_path / 'out'}")
+    done = run_cli(*args)
+    assert done.returncode == 2
+    lines = [line for line in done.stderr.splitlines() if line.strip()]
+    assert lines == [lines[0]] and lines[0].startswith("error: ") and message in lines[0]
+    assert not (tmp_path / "out" / "result.json").exists()
+    assert not (tmp_path / "data").exists()
+
+
+def test_bad_data_file_gives_one_line(tmp_path):
+    bad = tmp_path / "bad.npz"
+    bad.write_bytes(b"not a zip file")
+    done = run_cli("experiment=fig11_reconstruction", f"data.path={bad}",
+                   f"out={tmp_path / 'out'}")
+    assert done.returncode == 2
+    assert done.stderr.strip().startswith(f"error: {bad}: cannot be read as .npz")
+    assert not (tmp_path / "out" / "result.json").exists()
+
+
+def test_report_lists_every_reported_experiment(tmp_path):
+    text = build_report(tmp_path)  # no results: every section says how to make it
+    for _, name, _ in experiment_entries():
+        assert f"replicate experiment={name}" in text

@@ -21,7 +21,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from replication.errors import InputError
 from replication.provenance import code_hash, config_hash
-from replication.results import package_versions, write_json_atomic
+from replication.results import package_versions, read_result, write_json_atomic
 
 CONFIG_DIR = str(Path(__file__).resolve().parent.parent / "configs")
 
@@ -61,6 +61,11 @@ def run_experiment(config, out):
         )
     runner = resolve_runner(config["runner"])
     check_writable(out)
+    provenance = {"config_sha256": config_hash(config), "code_sha256": code_hash()}
+    previous = read_result(Path(out) / "result.json") if config.get("resume") else None
+    if previous is not None and previous.get("provenance") == provenance:
+        print(f"up to date: {Path(out) / 'result.json'} (resume=true)", file=sys.stderr)
+        return previous
     start = time.perf_counter()
     result = runner(config, Path(out))
     wall = time.perf_counter() - start
@@ -70,10 +75,11 @@ def run_experiment(config, out):
         "seed": config.get("seed"),
         "versions": package_versions(),
         "wall_seconds": wall,
-        "provenance": {"config_sha256": config_hash(config), "code_sha256": code_hash()},
+        "provenance": provenance,
     }
     payload.update(result)
     write_json_atomic(Path(out) / "result.json", payload)
+    print(f"wrote {Path(out) / 'result.json'}", file=sys.stderr)
     return payload
 
 
@@ -90,7 +96,6 @@ def _hydra_main(cfg: DictConfig):
     except FileNotFoundError as error:
         print(f"error: {error.filename}: file not found", file=sys.stderr)
         sys.exit(2)
-    print(f"wrote {Path(out) / 'result.json'}", file=sys.stderr)
 
 
 def main():

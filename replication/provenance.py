@@ -12,7 +12,7 @@ PROJECT_ROOT = PACKAGE_DIR.parent
 
 def config_hash(config):
     """sha256 of a resolved config, independent of key order and of where results go."""
-    config = {key: value for key, value in config.items() if key != "out"}
+    config = {key: value for key, value in config.items() if key not in ("out", "resume")}
     text = json.dumps(config, sort_keys=True, default=str)
     return hashlib.sha256(text.encode()).hexdigest()
 

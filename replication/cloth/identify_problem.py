@@ -1,0 +1,197 @@
+"""The cloth identification problem shared by every identifier (paper 3.3).
+
+Search space (bounds per parameter), the objective (the paper's cost as an
+:class:`~replication.optim.objective.Objective`, with residuals for least squares) and the
+scoring of an answer against known true parameters. Nothing here needs a file's ``meta``:
+the truth is only passed in to score.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from replication.cloth.costs import make_cost
+from replication.cloth.mesh import FAMILY_OF_TYPE, N_TYPES, springs
+from replication.cloth.model import PARAM_NAMES_5, PARAM_NAMES_18, params_from_vectors, step
+from replication.errors import InputError, check
+from replication.optim.objective import Objective
+
+MODELS = ("5", "18")
+
+
+@dataclass(frozen=True)
+class SearchSpace:
+    """Box bounds and names of a cloth parameter vector.
+
+    ``lower, upper`` : (n_var,); ``observed_rest`` : (n_var,) with the mean observed
+    length of each rest-length entry (``nan`` for K and tau), used to draw initial rest
+    lengths "around the average length values observed on the reference data" (paper 3.3).
+    """
+
+    model: str
+    names: tuple
+    lower: np.ndarray
+    upper: np.ndarray
+    observed_rest: np.ndarray
+
+    @property
+    def n_var(self):
+        return self.lower.size
+
+    @property
+    def rest_mask(self):
+        """(n_var,) bool: which entries are rest lengths."""
+        return np.isfinite(self.observed_rest)
+
+
+def mean_observed_lengths(trajectory):
+    """Mean length of each spring type over all frames of ``trajectory``, shape (6,)."""
+    a, b, kind = springs(trajectory.n)
+    x = trajectory.flat_positions()
+    lengths = np.linalg.norm(x[:, b] - x[:, a], axis=2).mean(axis=0)
+    return np.array([lengths[kind == t].mean() for t in range(N_TYPES)])
+
+
+def _check_interval(name, interval):
+    check(isinstance(interval, (list, tuple)) and len(interval) == 2,
+          f"bounds.{name}={interval!r}: expected [low, high]")
+    low, high = (float(v) for v in interval)
+    check(np.isfinite(low) and np.isfinite(high) and low < high,
+          f"bounds.{name}=[{low}, {high}]: low >= high; expected low < high")
+    return low, high
+
+
+def search_space(trajectory, bounds, *, model="5"):
+    """Bounds of the 5- or 18-parameter model on ``trajectory``.
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+    bounds : dict
+        ``rest: [low, high]`` as factors on the mean observed length per spring family
+        (5) or type (18), ``K: [low, high]`` and ``tau: [low, high]`` absolute.
+    model : "5" or "18"
+    """
+    check(model in MODELS, f"model={model!r}: expected '5' or '18'")
+    rest_low, rest_high = _check_interval("rest", bounds.get("rest"))
+    k_low, k_high = _check_interval("K", bounds.get("K"))
+    tau_low, tau_high = _check_interval("tau", bounds.get("tau"))
+    check(rest_low > 0 and k_low > 0 and tau_low > 0,
+          f"bounds: rest {rest_low}, K {k_low}, tau {tau_low}: expected positive lower bounds")
+    observed = mean_observed_lengths(trajectory)
+    if model == "5":
+        rest = np.array([observed[FAMILY_OF_TYPE == f].mean() for f in range(3)])
+        n_k, names = 1, PARAM_NAMES_5
+    else:
+        rest, n_k, names = observed, N_TYPES, PARAM_NAMES_18
+    nan = np.full(2 * n_k, np.nan)
+    lower = np.r_[rest * rest_low, np.full(n_k, k_low), np.full(n_k, tau_low)]
+    upper = np.r_[rest * rest_high, np.full(n_k, k_high), np.full(n_k, tau_high)]
+    return SearchSpace(model, tuple(names), lower, upper, np.r_[rest, nan])
+
+
+def random_population(space, size, rng, *, rest_spread):
+    """Paper 3.3 initialisation: uniform in the bounds, rest lengths uniform within
+    ``+-rest_spread`` (relative) of the observed mean lengths, clipped to the bounds.
+
+    Returns
+    -------
+    (size, n_var) ndarray
+    """
+    X = space.lower + rng.random((size, space.n_var)) * (space.upper - space.lower)
+    mask = space.rest_mask
+    around = space.observed_rest[mask] * (1.0 + rest_spread
+                                          * (2.0 * rng.random((size, mask.sum())) - 1.0))
+    X[:, mask] = np.clip(around, space.lower[mask], space.upper[mask])
+    return X
+
+
+def cost_from_config(trajectory, cost_cfg):
+    """The paper's cost (``cost_cfg.kind`` "small" or "full", or "frames" with an explicit
+    list ``cost_cfg.frames``) on ``trajectory``."""
+    kind = cost_cfg.get("kind", "small")
+    if kind == "frames":
+        from replication.cloth.costs import ClothCost
+        frames = np.asarray(cost_cfg["frames"], dtype=np.int64)
+        check(frames.size > 0, "cost.frames: expected at least one frame index")
+        if frames.min() < 0 or frames.max() > trajectory.n_frames - 2:
+            raise InputError(
+                f"cost.frames: frame index {int(frames.max())} is outside the data: "
+                f"expected 0 <= t <= {trajectory.n_frames - 2} for the "
+                f"{trajectory.n_frames}-frame file")
+        return ClothCost(trajectory, frames)
+    return make_cost(trajectory, kind, frame=cost_cfg.get("frame", 150),
+                     start=cost_cfg.get("start", 100), window=cost_cfg.get("window", 50))
+
+
+def residual_function(cost):
+    """Residuals of ``cost`` (a ClothCost): ``(X: (pop, n_var)) -> (pop, m)`` whose squared
+    norm equals ``cost`` (the normalised position and ``dtc``-weighted velocity errors of
+    every predicted frame)."""
+    xs, vs, frames = cost.xs, cost.vs, cost.frames
+    root = np.sqrt(cost.norm)
+
+    def residuals(X):
+        params = params_from_vectors(X)
+        pop, n_frames = params.pop, frames.size
+        tile = [np.repeat(p, n_frames, axis=0) for p in params]
+        rows = type(params)(*tile)
+        x0 = np.tile(xs[frames], (pop, 1, 1))
+        v0 = np.tile(vs[frames], (pop, 1, 1))
+        x1, v1 = step(x0, v0, rows, cost.scene)
+        dx = x1 - np.tile(xs[frames + 1], (pop, 1, 1))
+        dv = cost.dtc * (v1 - np.tile(vs[frames + 1], (pop, 1, 1)))
+        r = np.concatenate([dx.reshape(pop, -1), dv.reshape(pop, -1)], axis=1) / root
+        r[~np.all(np.isfinite(r), axis=1)] = np.inf
+        return r
+
+    return residuals
+
+
+def cloth_objective(cost, space, *, budget=None, with_residuals=False):
+    """The cost as an :class:`Objective` over ``space`` (counted, budgeted)."""
+    def fun(X):
+        return cost(params_from_vectors(X))
+
+    residuals = residual_function(cost) if with_residuals else None
+    return Objective(fun, space.lower, space.upper, budget=budget, residuals=residuals,
+                     names=space.names)
+
+
+def truth_vector(trajectory, model="5"):
+    """True parameter vector from ``trajectory.meta['true_params']`` (synthetic data only;
+    used to score, never to identify), or ``None``."""
+    true = trajectory.meta.get("true_params") if trajectory.meta else None
+    if not true:
+        return None
+    five = np.array([true[name] for name in PARAM_NAMES_5], dtype=float)
+    if model == "5":
+        return five
+    params = params_from_vectors(five)
+    return np.r_[params.rest[0], params.k[0], params.tau[0]]
+
+
+def relative_errors(vector, truth):
+    """Signed relative errors ``vector / truth - 1`` per parameter."""
+    return np.asarray(vector, float) / np.asarray(truth, float) - 1.0
+
+
+def is_success(vector, truth, rtol):
+    """All parameters within ``rtol`` (relative) of the truth."""
+    return bool(np.all(np.abs(relative_errors(vector, truth)) <= rtol))
+
+
+def named(vector, names, cost=None):
+    """A parameter vector as ``{name: value}`` (plus ``cost``); 18-parameter vectors as
+    ``{rest: [6], k: [6], tau: [6]}`` (spec/cli-and-results.md)."""
+    vector = np.asarray(vector, float)
+    if len(names) == 18:
+        out = {"rest": vector[0:6].tolist(), "k": vector[6:12].tolist(),
+               "tau": vector[12:18].tolist()}
+    else:
+        out = dict(zip(names, vector.tolist()))
+    if cost is not None:
+        out["cost"] = float(cost)
+    return out

@@ -1,0 +1,20 @@
+"""Best cost per generation of every paper-EA run (Tables 1-2 study), one panel per data."""
+
+from __future__ import annotations
+
+from replication.figures.cloth_common import new_figure, save
+
+
+def plot(runs, *, out_name):
+    """``runs``: ``{label: [record with 'history' (best cost per generation), 'success']}``."""
+    fig, axes = new_figure(len(runs))
+    for ax, (label, records) in zip(axes[0], runs.items()):
+        for record in records:
+            success = record.get("success")
+            color = "tab:green" if success else ("tab:red" if success is False else "tab:blue")
+            ax.semilogy(range(len(record["history"])), record["history"], color=color,
+                        alpha=0.6, lw=1)
+        ax.set_title(f"paper EA on {label} ({len(records)} seeds; green: truth within 1%)")
+        ax.set_xlabel("generation")
+        ax.set_ylabel("best cost")
+    return save(fig, out_name)

@@ -58,6 +58,7 @@ def main(argv=None):
               file=sys.stderr)
         return 2
     failures = []
+    timings = {}
     start = time.perf_counter()
     for index, (_, name, _) in enumerate(entries, 1):
         if only and name not in only:
@@ -66,6 +67,7 @@ def main(argv=None):
         label = f"[{index}/{len(entries)}] {name}"
         if done and not args.force:
             print(f"{label}: up to date", flush=True)
+            timings[name] = "up to date"
             continue
         print(f"{label}: running", flush=True)
         t0 = time.perf_counter()
@@ -78,8 +80,12 @@ def main(argv=None):
             print(f"{label}: FAILED (exit {status})", flush=True)
         else:
             cache[name] = keys[name]
-            print(f"{label}: done in {time.perf_counter() - t0:.1f} s", flush=True)
+            timings[name] = time.perf_counter() - t0
+            print(f"{label}: done in {timings[name]:.1f} s", flush=True)
         cache_path.write_text(json.dumps(cache, indent=1, sort_keys=True))
+    record = {"total_seconds": time.perf_counter() - start, "experiments": timings,
+              "forced": args.force, "only": sorted(only), "failures": failures}
+    (results / "regenerate.json").write_text(json.dumps(record, indent=1) + "\n")
     report_path = PROJECT_ROOT / "REPORT.md"
     report_path.write_text(build_report(results))
     print(f"wrote {report_path} ({time.perf_counter() - start:.1f} s in all)")

@@ -70,7 +70,7 @@ def fmt(value, digits=4):
 def build_report(results_dir):
     """The text of REPORT.md from the results under ``results_dir``."""
     results_dir = Path(results_dir)
-    sections, summary, missing = [], [], []
+    sections, summary, missing, failed = [], [], [], []
     for _, name, block in experiment_entries():
         result = read_result(results_dir / name)
         heading = f"## {block['title']}\n"
@@ -78,7 +78,13 @@ def build_report(results_dir):
             missing.append(name)
             sections.append(f"{heading}\nNot run yet: `replicate experiment={name}`.\n")
             continue
-        section = _call_section(block["section"], result)
+        try:
+            section = _call_section(block["section"], result)
+        except Exception as error:  # one broken section must not hide the others
+            failed.append(name)
+            sections.append(f"{heading}\n**This section could not be written** "
+                            f"(`{block['section']}`: {type(error).__name__}: {error}).\n")
+            continue
         footer = (f"\n_Made by `{command_line(result)}` in {result['wall_seconds']:.1f} s; "
                   f"config in `results/{name}/result.json`._\n")
         sections.append(heading + "\n" + section.markdown.strip() + "\n" + footer)
@@ -100,6 +106,8 @@ def build_report(results_dir):
                      f"{row.verdict} | `replicate experiment={name}` |")
     if missing:
         lines += ["", "Not run yet: " + ", ".join(f"`{name}`" for name in missing) + "."]
+    if failed:
+        lines += ["", "Sections that failed: " + ", ".join(f"`{name}`" for name in failed) + "."]
     return "\n".join(lines) + "\n\n" + "\n".join(sections)
 
 
@@ -116,3 +124,31 @@ def main(argv=None):
 
 if __name__ == "__main__":
     main()
+
+
+def _meets(value, goal):
+    comparison, target = goal
+    return value <= target if comparison == "<=" else value >= target
+
+
+def speed_section(result):
+    """The speed summary: every metric gathered by ``replicate experiment=bench``."""
+    goals = result.get("goals", {})
+    lines = ["| metric | value | goal | met |", "|---|---|---|---|"]
+    rows = []
+    for name, value in result["metrics"].items():
+        goal = goals.get(name)
+        if isinstance(value, (int, float)) and goal is not None:
+            met = "yes" if _meets(value, goal) else "**no**"
+            lines.append(f"| `{name}` | {fmt(value)} | {goal[0]} {fmt(goal[1])} | {met} |")
+        else:
+            lines.append(f"| `{name}` | {fmt(value)} | | |")
+    for name, goal in goals.items():
+        value = result["metrics"].get(name)
+        if isinstance(value, (int, float)):
+            rows.append(SummaryRow(f"speed: `{name}`", "n/a (issue goal)", fmt(value),
+                                   f"{goal[0]} {fmt(goal[1])}",
+                                   "met" if _meets(value, goal) else "not met"))
+    lines += ["", "Figures measured on this project's 2-core machine; the test-suite and "
+              "regeneration times come from the last full runs recorded in `results/`."]
+    return Section("\n".join(lines), rows)

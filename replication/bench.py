@@ -1,0 +1,37 @@
+"""``replicate experiment=bench``: every throughput figure of the suite in one result.json.
+
+Gathers the ``metrics`` of the area benchmarks (``bench_*`` experiments, run before it by
+``replicate-all``), the last full test-suite run (``results/tests.json``, written by the
+test suite itself) and the last regeneration (``results/regenerate.json``).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from replication.errors import check
+from replication.results import read_result
+
+
+def gather_benchmarks(config, out):
+    """Collect area benchmark metrics, the test-suite time and the regeneration time."""
+    results_dir = Path(config["results_dir"])
+    check(results_dir.is_dir(), f"results_dir={results_dir}: no such folder")
+    metrics, sources = {}, {}
+    for path in sorted(results_dir.glob("bench_*/result.json")):
+        result = read_result(path)
+        name = result.get("experiment") or path.parent.name
+        for key, value in result.get("metrics", {}).items():
+            metrics[f"{name}.{key}"] = value
+        sources[name] = {"wall_seconds": result.get("wall_seconds"),
+                         "code_sha256": result.get("provenance", {}).get("code_sha256")}
+    for label, filename, key in (("test_suite", "tests.json", "seconds"),
+                                 ("last_full_regeneration", "regenerate.json",
+                                  "total_seconds")):
+        path = results_dir / filename
+        if path.exists():
+            record = json.loads(path.read_text())
+            metrics[f"{label}_seconds"] = record.get(key)
+            sources[label] = record
+    return {"metrics": metrics, "sources": sources, "goals": config["goals"]}

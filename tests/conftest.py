@@ -1,0 +1,23 @@
+"""Record how long the test suite took, for the speed summary in REPORT.md."""
+
+import json
+import time
+from pathlib import Path
+
+_START = time.perf_counter()
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def pytest_sessionfinish(session, exitstatus):
+    """Write ``results/tests.json`` after a run of the whole suite (not a selection)."""
+    args = [a for a in session.config.invocation_params.args if not a.startswith("-")]
+    if args or session.config.getoption("keyword") or session.config.getoption("markexpr"):
+        return
+    reporter = session.config.pluginmanager.get_plugin("terminalreporter")
+    counts = {key: len(reporter.stats.get(key, [])) for key in ("passed", "failed", "skipped",
+                                                                 "error")}
+    record = {"seconds": time.perf_counter() - _START, "exit_status": int(exitstatus),
+              "collected": session.testscollected, **counts}
+    path = ROOT / "results" / "tests.json"
+    path.parent.mkdir(exist_ok=True)
+    path.write_text(json.dumps(record, indent=1) + "\n")

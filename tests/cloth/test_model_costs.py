@@ -1,0 +1,54 @@
+"""The paper's costs on the reference runs (spec/cloth-model.md, "Costs")."""
+
+import numpy as np
+import pytest
+
+from replication.cloth.costs import make_cost
+from replication.cloth.io import read_trajectory
+from replication.cloth.model import params_from_vectors, reference_vector
+
+ROOT = __import__("pathlib").Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module", params=[0.1, 0.5])
+def reference(request):
+    path = ROOT / f"synthetic_data/cloth/reference_tau{request.param:g}.npz"
+    return read_trajectory(path), reference_vector(request.param)
+
+
+def test_costs_vanish_at_truth_and_grow_away_from_it(reference):
+    trajectory, truth = reference
+    for kind in ("small", "full"):
+        cost = make_cost(trajectory, kind)
+        X = np.array([truth, truth * [1.01, 1, 1, 1, 1], truth * [1, 1, 1, 0.9, 1],
+                      truth * [1, 1, 1, 1, 0.8]])
+        values = cost(params_from_vectors(X))
+        assert values[0] < 1e-20
+        assert np.all(values[1:] > 1e-14)
+
+
+def test_full_cost_is_the_sum_of_its_50_frames(reference):
+    trajectory, truth = reference
+    full = make_cost(trajectory, "full", start=100, window=50)
+    X = params_from_vectors(truth * [1.02, 0.99, 1.0, 1.1, 0.9])
+    per_frame = sum(make_cost(trajectory, "small", frame=t)(X)[0] for t in range(100, 150))
+    assert full.frames.tolist() == list(range(100, 150))
+    assert full(X)[0] == pytest.approx(per_frame, rel=1e-12)
+
+
+def test_velocity_term_weight_dtc(reference):
+    trajectory, truth = reference
+    X = params_from_vectors(truth * [1, 1, 1, 1.2, 1])
+    positions_only = make_cost(trajectory, "small", dtc=0.0)(X)[0]
+    default = make_cost(trajectory, "small")(X)[0]
+    # with dtc = dt and v^ = (x^ - x_t)/dt, the velocity term equals the position term
+    assert default == pytest.approx(2 * positions_only, rel=1e-9)
+
+
+def test_blown_up_simulation_gives_infinite_cost_never_nan(reference):
+    trajectory, truth = reference
+    X = np.array([truth * [1, 1, 1, 1e307, 1], truth * [1, 1, 1, np.nan, 1], truth])
+    for kind in ("small", "full"):
+        values = make_cost(trajectory, kind)(params_from_vectors(X))
+        assert not np.any(np.isnan(values))
+        assert np.isinf(values[0]) and np.isinf(values[1]) and np.isfinite(values[2])

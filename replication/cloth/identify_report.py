@@ -114,3 +114,124 @@ def tables_section(result):
                               _errors_line(bad) or "n/a", "K too small and tau too large",
                               "replicated" if bad_trapped else "not replicated"))
     return Section("\n".join(lines), rows)
+
+
+def _rate(summary, budget):
+    value = summary[str(budget)].get("success_rate")
+    return "n/a" if value is None else f"{fmt(100 * value, 3)}%"
+
+
+def baselines_section(result):
+    """Baselines on the same objective: success, ECDF, fixed budgets, valley rate."""
+    cfg = result["config"]
+    budgets = result["budgets"]
+    names = result["names"]
+    lines = [
+        "Every optimiser minimises the same objective (the paper's "
+        f"**{cfg['cost']['kind']}** cost, frame {cfg['cost'].get('frame')}) over the same "
+        f"bounds (K {cfg['bounds']['K']}, tau {cfg['bounds']['tau']}, rest lengths "
+        f"{cfg['bounds']['rest']} x observed), through one counted objective "
+        "(`replication.optim.objective.Objective`): every parameter vector evaluated counts "
+        "once, least-squares Jacobians count n_var evaluations, pymoo's own counter is not "
+        f"used. {cfg['n_seeds']} seeds per optimiser and reference run; budget "
+        f"{budgets[-1]} evaluations (this default keeps the regeneration short; the issue's "
+        "20,000 is `budgets=[1000,5000,20000]`). Success: all parameters within "
+        f"{fmt(100 * cfg['success_rtol'])}% of the truth for the best-so-far point. "
+        "Algorithms that stop on their own tolerances are restarted from a new random point "
+        "until the budget is spent; pymoo's PatternSearch is left out because it ignores the "
+        "seed (not reproducible).",
+        "",
+    ]
+    rows = []
+    for label, by_opt in result["summary"].items():
+        head = ["optimiser"] + [f"success @{b}" for b in budgets] + [
+            "median evals to success", f"wrong valley @{budgets[-1]}",
+            f"median cost @{budgets[-1]}"] + [f"med. abs. err {n} @{budgets[-1]}"
+                                              for n in ("K", "tau")]
+        lines += [f"**{label}**", "", "| " + " | ".join(head) + " |",
+                  "|" + "---|" * len(head)]
+        for name, s in by_opt.items():
+            last = s[str(budgets[-1])]
+            errs = last.get("median_abs_errors", {})
+            valley = last.get("valley_rate")
+            cells = [name] + [_rate(s, b) for b in budgets] + [
+                fmt(s["median_evals_to_success"]),
+                "n/a" if valley is None else f"{fmt(100 * valley, 3)}%",
+                fmt(last["median_cost"], 3),
+                _pct(errs.get("K")), _pct(errs.get("tau"))]
+            lines.append("| " + " | ".join(cells) + " |")
+        lines.append("")
+        structured = by_opt.get("structured")
+        if structured is not None and "success_rate" in structured[str(budgets[-1])]:
+            rate = structured[str(budgets[-1])]["success_rate"]
+            rows.append(SummaryRow(
+                f"structured identifier reaches the truth, {label} (beyond the paper)",
+                "n/a", f"{fmt(100 * rate, 3)}% of {cfg['n_seeds']} seeds within "
+                       f"{budgets[-1]} evaluations (median "
+                       f"{fmt(structured['median_evals_to_success'])})",
+                "100% within 5,000", "beyond the paper" if rate == 1.0 and budgets[-1]
+                <= 5000 else "not met"))
+        general = [(n, s[str(budgets[-1])].get("success_rate")) for n, s in by_opt.items()
+                   if n not in ("structured",)]
+        best_general = max(general, key=lambda item: item[1] or 0.0)
+        rows.append(SummaryRow(
+            f"general optimisers on the small cost, {label} (issue 3)", "n/a",
+            f"best: {best_general[0]} {fmt(100 * (best_general[1] or 0.0), 3)}% at "
+            f"{budgets[-1]} evaluations", "report honestly", "beyond the paper"))
+    lines += [f"![ECDF]({result['figures'][0]})", "",
+              f"![convergence]({result['figures'][1]})", "",
+              "Wrong valley: the best point's tau is more than 20% above the truth, i.e. the "
+              "deformation constraint is (mostly) switched off and K is too small to "
+              "compensate; parameter errors are medians over seeds of |relative error| of "
+              f"the best-so-far point ({', '.join(names)})."]
+    return Section("\n".join(lines), rows)
+
+
+def landscape_section(result):
+    """Figs. 9-10: where the minima and valleys of the cost are."""
+    lines = [
+        "Cost over (K, tau) with the rest lengths fixed to their reference values, small "
+        "(one frame) and full (50 frames) cost, log colour scale. The paper's window is "
+        "K in [2, 4] and tau in [0.995, 1.01]; that tau interval cannot hold 0.1 or 0.5, so "
+        "it is read here as a factor on the reference tau. The wide window (log axes) shows "
+        "the valley. The white path is the paper EA's best individual per generation (its "
+        "rest lengths are free, so the path is a projection).",
+        "",
+        "| data | cost | window | cost at truth | grid minimum (K, tau) | lowest cost with "
+        "tau > 1.2 x truth (K, tau) |",
+        "|---|---|---|---|---|---|",
+    ]
+    rows = []
+    for label, entry in result["landscapes"].items():
+        for name, s in entry["panels"].items():
+            kind, window = name.split("/")
+            valley = s.get("valley")
+            valley_text = "n/a" if valley is None else (
+                f"{fmt(valley['cost'], 3)} ({fmt(valley['K'], 3)}, {fmt(valley['tau'], 3)})")
+            lines.append(f"| {label} | {kind} | {window} | {fmt(s['cost_at_truth'], 3)} | "
+                         f"{fmt(s['min_cost'], 3)} ({fmt(s['argmin_K'], 3)}, "
+                         f"{fmt(s['argmin_tau'], 3)}) | {valley_text} |")
+        final = entry["ea_final"]
+        end = entry["ea_path"][-1]
+        lines.append("")
+        lines.append(f"{label}: the paper EA ends at K = {fmt(end[0], 4)}, tau = "
+                     f"{fmt(end[1], 4)} ({final.get('outcome', 'n/a')}).")
+        lines.append("")
+        small_wide = entry["panels"].get("small/wide")
+        if small_wide and small_wide.get("valley"):
+            rows.append(SummaryRow(
+                f"cost minimum at the reference, valley elsewhere ({label}, Figs. 9-10)",
+                "minimum at the reference; valley on the left of Fig. 10",
+                f"minimum {fmt(small_wide['min_cost'], 3)} at K {fmt(small_wide['argmin_K'], 3)}"
+                f", tau {fmt(small_wide['argmin_tau'], 3)}; valley "
+                f"{fmt(small_wide['valley']['cost'], 3)} at K "
+                f"{fmt(small_wide['valley']['K'], 3)}, tau "
+                f"{fmt(small_wide['valley']['tau'], 3)}",
+                "qualitative", "replicated"))
+    for figure in result["figures"]:
+        lines += [f"![landscape]({figure})", ""]
+    lines.append("Reading: the minimum in tau is a needle (a relative change of 1% in tau "
+                 "raises the cost by orders of magnitude, Fig. 9-10 paper windows), while the "
+                 "region where tau exceeds every strain in the frame is a flat valley whose "
+                 "cost is far below most of the window: a population lands there first.")
+    return Section("\n".join(lines), rows)

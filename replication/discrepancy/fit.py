@@ -22,7 +22,7 @@ from scipy.optimize import minimize_scalar
 from replication.cloth.costs import ClothCost, structural_length
 from replication.cloth.model import ClothParams, step
 from replication.discrepancy import effects as fx
-from replication.discrepancy.geometry import MeshOperators, spring_sums
+from replication.discrepancy.geometry import MeshOperators
 
 LAG_BEFORE = 2
 LAG_AFTER = 3
@@ -305,7 +305,7 @@ def fit_model(data, frames, effect_names=(), *, model="5", base=None, rounds=2, 
     frames = usable_frames(frames, data.n_frames)
     effect_names = tuple(effect_names)
     if base is None:
-        base = initial_base(data, frames, model=model, block=block)
+        base = initial_base(data, frames, model=model, block=block, effect_names=effect_names)
     terms = []
     for _ in range(rounds):
         mask = constraint_mask(data, base, terms, frames)
@@ -350,7 +350,8 @@ def _plausible(rest, typical, *, low=PLAUSIBLE_REST[0], high=PLAUSIBLE_REST[1]):
     return bool(np.all((ratio >= low) & (ratio <= high)))
 
 
-def initial_base(data, frames, *, model="5", block=5, taus=None, inner=3, max_frames=40):
+def initial_base(data, frames, *, model="5", block=5, taus=None, inner=3, max_frames=40,
+                 effect_names=()):
     """Robust start: profile over ``tau``.
 
     For each ``tau`` of a coarse grid, alternate a base-only IV fit and the mask of
@@ -359,13 +360,14 @@ def initial_base(data, frames, *, model="5", block=5, taus=None, inner=3, max_fr
     """
     taus = np.geomspace(0.02, 1.0, 13) if taus is None else np.asarray(taus)
     ratio = np.sqrt(taus[1] / taus[0]) if len(taus) > 1 else 1.0
-    A, B = spring_sums(data.ops, data.x)
-    columns = base_columns(A, B, data.mass, model)
+    typical = typical_lengths(data)
+    guess = BaseModel(typical, np.ones(6), np.full(6, BIG_TAU))
+    columns, slices = design(data, guess, effect_names, model)
     m = columns.shape[-1]
+    nb = n_base(model)
     z = 0.5 * (columns[frames - LAG_BEFORE] + columns[frames + LAG_AFTER])
     normal = np.einsum("fpci,fpcj->fpij", z, columns[frames])
     right = np.einsum("fpci,fpc->fpi", z, data.target[frames])
-    typical = typical_lengths(data)
     rest0 = typical
     cost_frames = frames if len(frames) <= max_frames else \
         frames[np.linspace(0, len(frames) - 1, max_frames).round().astype(int)]
@@ -373,25 +375,28 @@ def initial_base(data, frames, *, model="5", block=5, taus=None, inner=3, max_fr
     best = None
     for tau in taus:
         rest = rest0
-        base = None
+        base, terms = None, []
         for _ in range(inner):
             keep = _observed_mask(data, rest, tau, frames).astype(float)
             lhs = np.einsum("fp,fpij->ij", keep, normal)
             if np.linalg.matrix_rank(lhs) < m:
                 break
             theta = np.linalg.solve(lhs, np.einsum("fp,fpi->i", keep, right))
-            base = base_from_theta(theta, model, tau)
+            base = base_from_theta(theta[:nb], model, tau)
+            terms = [(name, theta[slices[name]]) for name in effect_names]
             if not (np.all(base.k > 0) and np.all(base.rest > 0)):
                 base = None
                 break
             rest = base.rest
         if base is None or not _plausible(base.rest, typical):
             continue
-        local = np.geomspace(tau / ratio, tau * ratio, 13)
+        local = np.geomspace(tau / ratio, tau * ratio ** 3, 25)
         params = ClothParams(np.repeat(base.rest[None], local.size, 0),
                              np.repeat(base.k[None], local.size, 0),
                              np.repeat(local[:, None], 6, 1))
-        values = cost(params)
+        q = fx.Frames(data.x[cost_frames], data.v[cost_frames], data.ops, data.mass,
+                      base.rest, base.k, data.scene.damping)
+        values = cost(params, fx.extra_force(terms, q)[None])
         pick = int(np.argmin(values))
         if best is None or values[pick] < best[0]:
             best = (float(values[pick]), BaseModel(base.rest, base.k, np.full(6, local[pick])))

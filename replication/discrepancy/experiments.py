@@ -1,0 +1,126 @@
+"""Runners of the discrepancy experiments (issue 6): one file, and the blind study."""
+
+from __future__ import annotations
+
+import hashlib
+import time
+from pathlib import Path
+
+import numpy as np
+
+from replication.cloth.io import read_trajectory
+from replication.discrepancy import generate as gen
+from replication.discrepancy.workflow import analyse
+from replication.errors import InputError, check
+from replication.progress import progress
+from replication.results import write_json_atomic
+
+
+def discrepancy(config, out):
+    """``replicate experiment=discrepancy data.path=FILE out=DIR``: the whole workflow."""
+    path = (config.get("data") or {}).get("path")
+    if not path:
+        raise InputError("data.path is not set: pass data.path=FILE (a trajectory .npz, "
+                         "shared/spec/data-formats.md)")
+    trajectory = read_trajectory(path)
+    settings = config.get("discrepancy") or {}
+    progress(f"discrepancy workflow on {path}: {trajectory.n_frames} frames")
+    result = analyse(trajectory, settings, rng=np.random.default_rng(config.get("seed")))
+    names = [effect["name"] for effect in result["named_effects"]] or ["none"]
+    progress(f"named: {', '.join(names)}; unexplained: {result['unexplained'] is not None}; "
+             f"gap {result['gap_before']:.4g} -> {result['gap_after']:.4g} h")
+    result["data_path"] = str(path)
+    if config.get("plots", True):
+        from replication.figures.discrepancy_where import plot_where
+        result["plots"] = [str(p) for p in plot_where(result, Path(out))]
+    return result
+
+
+def _coefficient_error(spec, named, mass):
+    truth = gen.truth_coefficients(spec, mass)
+    if truth is None or not named or named[0]["name"] != spec["effect"]:
+        return None
+    fitted = np.array(list(named[0]["parameters"]["coefficients"].values()))
+    return float(np.linalg.norm(fitted - truth) / np.linalg.norm(truth))
+
+
+def blind_study(config, out):
+    """Hidden effects in generated data, analysed blind; rates, confusion, gaps, errors."""
+    study = config["study"]
+    n_datasets = int(study["n_datasets"])
+    check(n_datasets >= 1, f"study.n_datasets={n_datasets}: expected at least 1")
+    n_frames = int(study["n_frames"])
+    check(n_frames >= 60, f"study.n_frames={n_frames}: expected at least 60")
+    labels = list(study["effects"])
+    rng = np.random.default_rng(config["seed"])
+    rows = []
+    for index in range(n_datasets):
+        spec = gen.draw_spec(rng, effects=labels, noise_range=study["noise_range"])
+        trajectory = gen.make_trajectory(spec, n_frames)
+        digest = hashlib.sha256(np.ascontiguousarray(trajectory.positions).tobytes()).hexdigest()
+        start = time.perf_counter()
+        result = analyse(trajectory, config.get("discrepancy") or {},
+                         rng=np.random.default_rng(spec["seed"]))
+        wall = time.perf_counter() - start
+        named = [effect["name"] for effect in result["named_effects"]]
+        call = named[0] if named else ("unexplained" if result["unexplained"] else "none")
+        expected = "unexplained" if spec["effect"] in gen.OUTSIDE_EFFECTS else spec["effect"]
+        rows.append({
+            "index": index, "spec": spec, "call": call, "correct": call == expected,
+            "expected": expected,
+            "gap_before": result["gap_before"], "gap_after": result["gap_after"],
+            "Q": result["where"]["Q"], "noise_sigma_h_estimate": result["where"]["noise_sigma_h"],
+            "coefficient_error": _coefficient_error(spec, result["named_effects"], 0.001),
+            "wall_seconds": wall, "positions_sha256": digest,
+        })
+        progress(f"blind {index + 1}/{n_datasets}: hidden {spec['effect']} "
+                 f"(noise {spec['noise_h']:.2g} h) -> {call} ({wall:.1f} s)")
+    result = {"datasets": rows, "summary": summarise(rows, study)}
+    manifest = {"config": {k: v for k, v in config.items() if k not in ("out", "report")},
+                "note": "datasets are regenerated deterministically from these specs "
+                        "(replication.discrepancy.generate.make_trajectory); sha256 of the "
+                        "positions array bytes",
+                "datasets": [{"spec": r["spec"], "positions_sha256": r["positions_sha256"]}
+                             for r in rows]}
+    write_json_atomic(Path(config["manifest"]), manifest)
+    from replication.figures.discrepancy_blind import plot_blind
+    result["figure"] = str(plot_blind(result, config["figure"]))
+    return result
+
+
+def summarise(rows, study):
+    """Rates, confusion matrix, gap-shrink factors and coefficient errors of a blind study."""
+    classes = sorted({r["expected"] for r in rows} | {r["call"] for r in rows})
+    confusion = {e: {c: 0 for c in classes} for e in classes}
+    for r in rows:
+        confusion[r["expected"]][r["call"]] += 1
+    moderate = float(study["moderate_noise_h"])
+    effect_rows = [r for r in rows if r["expected"] != "none"]
+    moderate_rows = [r for r in effect_rows if r["spec"]["noise_h"] <= moderate]
+    clean = [r for r in rows if r["expected"] == "none"]
+    library = [r for r in effect_rows if r["expected"] != "unexplained"]
+    shrink = [r["gap_before"] / r["gap_after"] for r in library
+              if r["correct"] and r["gap_after"] > 0]
+    errors = [r["coefficient_error"] for r in library if r["coefficient_error"] is not None]
+
+    def rate(subset):
+        return float(np.mean([r["correct"] for r in subset])) if subset else None
+
+    return {
+        "n_datasets": len(rows), "classes": classes, "confusion": confusion,
+        "correct_rate_all_effects": rate(effect_rows),
+        "correct_rate_moderate_snr": rate(moderate_rows),
+        "n_moderate": len(moderate_rows),
+        "moderate_noise_h": moderate,
+        "false_name_rate_effect_free": (float(np.mean([r["call"] != "none" for r in clean]))
+                                        if clean else None),
+        "n_effect_free": len(clean),
+        "outside_effect_reported_unexplained": rate([r for r in rows
+                                                     if r["expected"] == "unexplained"]),
+        "gap_shrink_median": float(np.median(shrink)) if shrink else None,
+        "gap_shrink": shrink,
+        "coefficient_error_median": float(np.median(errors)) if errors else None,
+        "coefficient_within_10pct": float(np.mean(np.array(errors) <= 0.1)) if errors else None,
+        "wall_seconds_median": float(np.median([r["wall_seconds"] for r in rows])),
+        "wall_seconds_max": float(np.max([r["wall_seconds"] for r in rows])),
+    }

@@ -1,0 +1,108 @@
+"""The discrepancy workflow (issue 6): clean data, a planted effect, refusals, determinism,
+and the real command line."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from replication.cloth.io import write_trajectory
+from replication.discrepancy import generate as gen
+from replication.discrepancy.experiments import discrepancy
+from replication.discrepancy.workflow import analyse
+from replication.errors import InputError
+
+ROOT = Path(__file__).resolve().parents[2]
+N_FRAMES = 100
+
+
+def _spec(effect, truth, noise=1e-4, seed=11):
+    return {"effect": effect, "truth": truth, "noise_h": noise, "K": 4.0, "tau": 0.3,
+            "seed": seed}
+
+
+@pytest.fixture(scope="module")
+def clean_trajectory():
+    return gen.make_trajectory(_spec("none", {}), N_FRAMES)
+
+
+@pytest.fixture(scope="module")
+def clean_result(clean_trajectory):
+    return analyse(clean_trajectory, {"n_subsamples": 10}, rng=0)
+
+
+def test_clean_data_gets_no_name(clean_result):
+    assert clean_result["named_effects"] == []
+    assert clean_result["unexplained"] is None
+    assert clean_result["gap_after"] == clean_result["gap_before"]
+    # the noise floor is estimated from the data alone
+    assert 0.7e-4 < clean_result["where"]["noise_sigma_h"] < 1.3e-4
+
+
+def test_planted_drag_is_named_with_its_coefficient():
+    spec = _spec("quadratic_drag", {"per_mass": [2.0]})
+    result = analyse(gen.make_trajectory(spec, N_FRAMES), {"n_subsamples": 10}, rng=0)
+    assert [e["name"] for e in result["named_effects"]] == ["quadratic_drag"]
+    fitted = result["named_effects"][0]["parameters"]["c_q"]
+    assert abs(fitted - 2.0 * 0.001) < 0.05 * 2.0 * 0.001
+    assert result["gap_after"] < result["gap_before"]
+
+
+def test_same_seed_same_numbers(clean_trajectory, clean_result):
+    again = analyse(clean_trajectory, {"n_subsamples": 10}, rng=0)
+    assert again["gap_before"] == clean_result["gap_before"]
+    assert again["where"]["Q"] == clean_result["where"]["Q"]
+    assert again["candidates"] == clean_result["candidates"]
+
+
+def _config(path, tmp_path):
+    return {"seed": 0, "data": {"path": str(path)}, "plots": False,
+            "discrepancy": {"n_subsamples": 5}, "out": str(tmp_path)}
+
+
+def test_refuses_missing_data_path(tmp_path):
+    with pytest.raises(InputError, match="data.path is not set"):
+        discrepancy({"seed": 0, "data": {"path": None}}, tmp_path)
+
+
+def test_refuses_file_without_positions(tmp_path):
+    path = tmp_path / "bad.npz"
+    np.savez(path, dt=0.002, mass=0.001, gravity=np.zeros(3), pinned=np.zeros((0, 2), int))
+    with pytest.raises(InputError, match=r"bad.npz: field 'positions': found no such key"):
+        discrepancy(_config(path, tmp_path), tmp_path)
+
+
+def test_refuses_too_short_trajectory(tmp_path, clean_trajectory):
+    path = tmp_path / "short.npz"
+    short = clean_trajectory.__class__(**{**clean_trajectory.__dict__,
+                                          "positions": clean_trajectory.positions[:20]})
+    write_trajectory(path, short)
+    with pytest.raises(InputError, match=r"field 'positions': found 20 frames; expected at least"):
+        discrepancy(_config(path, tmp_path), tmp_path)
+
+
+def test_command_line(tmp_path, clean_trajectory):
+    data = tmp_path / "tiny.npz"
+    write_trajectory(data, clean_trajectory)
+    out = tmp_path / "run"
+    command = [sys.executable, "-m", "replication.cli", "experiment=discrepancy",
+               f"data.path={data}", f"out={out}", "discrepancy.n_subsamples=5"]
+    done = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    result = json.loads((out / "result.json").read_text())
+    for key in ("named_effects", "gap_before", "gap_after", "where"):
+        assert key in result
+    assert (out / "discrepancy_where.png").exists()
+
+    bad = tmp_path / "bad.npz"
+    bad.write_bytes(b"not a zip")
+    out_bad = tmp_path / "run_bad"
+    done = subprocess.run(command[:4] + [f"data.path={bad}", f"out={out_bad}"], cwd=ROOT,
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2
+    assert done.stderr.strip().startswith("error: ") and "bad.npz" in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1
+    assert not (out_bad / "result.json").exists()

@@ -1,0 +1,130 @@
+"""Synthetic sequences for paper 2.3: several textured objects rotating on a static background.
+
+Built on :mod:`replication.motion.synth` (textures, C-shapes, camera degradation). Object
+``k`` (label ``k + 1``) has a frame-0 shape (:func:`~replication.motion.synth.c_shape_mask`
+keywords: a disc is ``r_inner = 0, gap_deg = 0``), its own texture, and turns about its own
+centre ``(xi_k, eta_k)`` at ``omega_k`` rad/frame (coordinates of spec/data-formats.md:
+``x`` column, ``y`` row, ``omega > 0`` clockwise on screen). Objects are painted in list
+order, so a later object hides an earlier one where they meet.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+
+from replication.errors import check
+from replication.motion.synth import c_shape_mask, degrade, make_texture
+
+SHAPE_KEYS = ("center", "r_inner", "r_outer", "gap_deg", "gap_dir_deg")
+
+
+def check_object(where, item):
+    """Refuse an object spec without ``center``, ``omega`` or ``shape``, or a bad one."""
+    for key in ("center", "omega", "shape"):
+        check(key in item, f"{where}: no '{key}'; expected center [xi, eta], omega "
+              "(rad/frame) and shape {center, r_inner, r_outer, gap_deg}")
+    check(len(item["center"]) == 2, f"{where}.center: {item['center']}; expected [xi, eta]")
+    unknown = sorted(set(item["shape"]) - set(SHAPE_KEYS))
+    check(not unknown, f"{where}.shape: unknown key(s) {unknown}; expected some of "
+          + ", ".join(SHAPE_KEYS))
+    check(0 <= item["shape"].get("r_inner", 0) < item["shape"].get("r_outer", 0),
+          f"{where}.shape: r_inner={item['shape'].get('r_inner', 0)}, r_outer="
+          f"{item['shape'].get('r_outer')}; expected 0 <= r_inner < r_outer")
+
+
+def render_objects(*, shape, objects, background_texture, n_frames, supersample=3):
+    """Frames and label masks of several objects turning about their own centres.
+
+    Parameters
+    ----------
+    shape : (H, W) tuple
+    objects : list of dict
+        Each ``{xi, eta, omega, mask_kwargs, texture}``: rotation centre and speed,
+        :func:`c_shape_mask` keywords of the frame-0 shape, and an ``(H, W)`` texture in
+        frame-0 coordinates.
+    background_texture : (H, W) ndarray
+    n_frames : int
+    supersample : int
+        Sub-pixel points per pixel and axis (a box camera).
+
+    Returns
+    -------
+    frames : (T, H, W) ndarray of float64
+    labels : (T, H, W) ndarray of uint8
+        ``k + 1`` where more than half of a pixel shows object ``k``, else 0.
+    """
+    height, width = shape
+    offsets = (np.arange(supersample) + 0.5) / supersample - 0.5
+    rows, cols = np.mgrid[0:height, 0:width].astype(float)
+    frames = np.zeros((n_frames, height, width))
+    coverage = np.zeros((len(objects) + 1, n_frames, height, width))
+    for oy in offsets:
+        for ox in offsets:
+            x, y = cols + ox, rows + oy
+            background = ndimage.map_coordinates(background_texture, [y, x], order=3,
+                                                  mode="reflect")
+            for t in range(n_frames):
+                value, owner = background.copy(), np.zeros(shape, dtype=np.int64)
+                for k, item in enumerate(objects):
+                    angle = -item["omega"] * t   # the point seen at (x, y) came from R(-omega t)
+                    dx, dy = x - item["xi"], y - item["eta"]
+                    x0 = item["xi"] + np.cos(angle) * dx - np.sin(angle) * dy
+                    y0 = item["eta"] + np.sin(angle) * dx + np.cos(angle) * dy
+                    inside = c_shape_mask(x0, y0, **item["mask_kwargs"])
+                    texture = ndimage.map_coordinates(item["texture"], [y0, x0], order=3,
+                                                      mode="reflect")
+                    value = np.where(inside, texture, value)
+                    owner = np.where(inside, k + 1, owner)
+                frames[t] += value
+                for k in range(len(objects) + 1):
+                    coverage[k, t] += owner == k
+    n_points = supersample * supersample
+    best = np.argmax(coverage, axis=0)
+    labels = np.where(np.take_along_axis(coverage, best[None], 0)[0] > n_points / 2, best, 0)
+    return frames / n_points, labels.astype(np.uint8)
+
+
+def make_multi_sequence(spec, *, rng):
+    """A multi-object sequence from one config ``spec`` (see ``motion_multi_data.yaml``).
+
+    Parameters
+    ----------
+    spec : dict
+        ``shape, n_frames, supersample, noise_sigma, bits, background_texture`` and
+        ``objects``: a list of ``{center: [xi, eta], omega, shape: {c_shape keywords},
+        texture: {texture spec}}``.
+    rng : numpy.random.Generator or int or None
+        Draws the procedural textures (background first, then each object's) and the noise.
+
+    Returns
+    -------
+    frames : (T, H, W) ndarray of float64
+    labels : (T, H, W) ndarray of uint8
+    truth : dict
+        ``{"objects": [{"label", "xi", "eta", "omega"}]}`` (data-formats.md), label ``k + 1``
+        for object ``k``.
+    """
+    rng = np.random.default_rng(rng)
+    shape = tuple(int(v) for v in spec.get("shape", (256, 256)))
+    check(1 <= len(spec.get("objects", [])) <= 4,
+          f"objects: {len(spec.get('objects', []))} object(s); expected 1 to 4")
+    for k, item in enumerate(spec["objects"]):
+        check_object(f"objects[{k}]", item)
+    background = make_texture(spec.get("background_texture", {}), shape, rng=rng)
+    objects, truth = [], []
+    for k, item in enumerate(spec["objects"]):
+        mask_kwargs = {key: float(v) for key, v in item["shape"].items() if key != "center"}
+        mask_kwargs["center"] = tuple(float(v) for v in item["shape"]["center"])
+        objects.append({"xi": float(item["center"][0]), "eta": float(item["center"][1]),
+                        "omega": float(item["omega"]), "mask_kwargs": mask_kwargs,
+                        "texture": make_texture(item.get("texture", {}), shape, rng=rng)})
+        truth.append({"label": k + 1, "xi": float(item["center"][0]),
+                      "eta": float(item["center"][1]), "omega": float(item["omega"])})
+    frames, labels = render_objects(shape=shape, objects=objects,
+                                    background_texture=background,
+                                    n_frames=int(spec.get("n_frames", 2)),
+                                    supersample=int(spec.get("supersample", 3)))
+    frames = degrade(frames, noise_sigma=float(spec.get("noise_sigma", 0.0)),
+                     bits=spec.get("bits"), rng=rng)
+    return frames, labels, {"objects": truth}

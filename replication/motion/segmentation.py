@@ -1,0 +1,235 @@
+"""Rigid-motion segmentation, the whole of paper 2.3: discs, snakes, restricted accumulation.
+
+1. The EA of 2.3.2 (:mod:`replication.motion.disc_ea`) gives discs with rotations; its final
+   20% best are kept, and those better explained by no motion than by their rotation are
+   dropped (the static background).
+2. Each disc grows into a region by a radial snake (2.3.3, :mod:`replication.motion.snakes`).
+3. Each region's rotation is re-estimated by the accumulation of 2.2 (``irc.sweep``) with
+   votes from the region's pixels only, over ``omega`` values around the disc's ``omega``
+   (2.3.4); regions whose refined rotations share a centre (and speed) are one object,
+   whose rotation is accumulated again over the union of its regions.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from replication.errors import InputError
+from replication.motion import disc_ea, irc, snakes
+from replication.motion.derivatives import PixelDerivatives
+
+SNAKE_DEFAULTS = {"tolerance": 0.3, "ambiguous": 0.15, "n_sectors": 64, "rho_max": 120,
+                  "kappa": 0.05, "steps": [8, 4, 2, 1], "iterations": 20}
+ACCUMULATION_DEFAULTS = {
+    "omega_window": 0.5,      # explore omega_i (1 -/+ this), and at least +/- omega_step
+    "omega_step": 0.005,
+    "omega_count": 41,
+    "cell": 1.0,              # accumulator cell, pixels
+    "window": 40.0,           # accumulator: the region's bounding box plus this, pixels
+    "min_pixels": 50,         # regions with fewer voting pixels are dropped
+}
+MERGE_DEFAULTS = {"centre_px": 8.0, "omega_rel": 0.25, "min_area": 150}
+GROUPS = {"ea": disc_ea.DEFAULTS, "snake": SNAKE_DEFAULTS,
+          "accumulation": ACCUMULATION_DEFAULTS, "merge": MERGE_DEFAULTS}
+
+
+def settings_from(method):
+    """Defaults of every step updated by a config's ``method`` block.
+
+    ``method`` is ``{search: paper|nichega, ea: {...}, snake: {...}, accumulation: {...},
+    merge: {...}, nichega: {...}}``; unknown groups or keys are refused.
+
+    Raises
+    ------
+    InputError
+        Naming the unknown key and the known ones.
+    """
+    method = dict(method or {})
+    settings = {"search": method.pop("search", "paper"), "nichega": method.pop("nichega", {})}
+    if settings["search"] not in ("paper", "nichega"):
+        raise InputError(f"method.search: '{settings['search']}'; expected paper or nichega")
+    unknown = sorted(set(method) - set(GROUPS))
+    if unknown:
+        raise InputError(f"method: unknown group(s) {unknown}; expected some of "
+                         + ", ".join([*GROUPS, "search", "nichega"]))
+    for group, defaults in GROUPS.items():
+        given = dict(method.get(group) or {})
+        bad = sorted(set(given) - set(defaults))
+        if bad:
+            raise InputError(f"method.{group}: unknown setting(s) {bad}; expected some of "
+                             + ", ".join(defaults))
+        settings[group] = {**defaults, **given}
+    try:
+        disc_ea.check_settings(settings["ea"])
+    except ValueError as error:
+        raise InputError(f"method.ea.{error}") from None
+    return settings
+
+
+def dense_to_pixels(data):
+    """The used pixels of :class:`~replication.motion.disc_ea.DiscData` as
+    :class:`~replication.motion.derivatives.PixelDerivatives` (pair by pair, row-major)."""
+    pair, rows, cols = np.nonzero(data.used)
+    return PixelDerivatives(x=cols.astype(float), y=rows.astype(float),
+                            gx=data.gx[pair, rows, cols], gy=data.gy[pair, rows, cols],
+                            gt=data.gt[pair, rows, cols], pair=pair.astype(np.int64))
+
+
+def _subset(pixels, keep):
+    return PixelDerivatives(pixels.x[keep], pixels.y[keep], pixels.gx[keep], pixels.gy[keep],
+                            pixels.gt[keep], pixels.pair[keep])
+
+
+def omega_values(omega, settings):
+    """The restricted sweep around ``omega``: ``(omega_count,)`` values, none of them 0."""
+    half = max(settings["omega_window"] * abs(omega), settings["omega_step"])
+    values = np.linspace(omega - half, omega + half, int(settings["omega_count"]))
+    return values[np.abs(values) > 1e-6]
+
+
+def window_grid(mask, shape, settings, margin):
+    """Accumulator over the bounding box of ``mask`` plus ``window`` pixels (within the
+    image plus ``margin``)."""
+    rows, cols = np.nonzero(mask)
+    height, width = shape
+    pad, cell = settings["window"], settings["cell"]
+    x0 = max(cols.min() - pad, -margin)
+    y0 = max(rows.min() - pad, -margin)
+    x1 = min(cols.max() + pad, width - 1 + margin)
+    y1 = min(rows.max() + pad, height - 1 + margin)
+    return irc.Grid(x0=float(x0), y0=float(y0), cell=float(cell),
+                    nx=int(math.floor((x1 - x0) / cell)) + 1,
+                    ny=int(math.floor((y1 - y0) / cell)) + 1)
+
+
+def restricted_accumulation(pixels, mask, omega, settings, *, margin):
+    """Paper 2.3.4: the accumulation of 2.2 with the votes of ``mask``'s pixels only.
+
+    Parameters
+    ----------
+    pixels : PixelDerivatives
+        All pixels with a sufficient gradient.
+    mask : (H, W) ndarray of bool
+    omega : float
+        The region's starting rotation speed (non-zero).
+    settings : dict
+        :data:`ACCUMULATION_DEFAULTS` keys.
+    margin : float
+        How far outside the image a centre may lie, pixels.
+
+    Returns
+    -------
+    dict or None
+        ``xi, eta, omega, peak, pixels`` and the ``grid``; None if the region has fewer than
+        ``min_pixels`` voting pixels.
+    """
+    inside = mask[pixels.y.astype(np.int64), pixels.x.astype(np.int64)]
+    if np.count_nonzero(inside) < settings["min_pixels"]:
+        return None
+    chosen = _subset(pixels, inside)
+    grid = window_grid(mask, mask.shape, settings, margin)
+    best = irc.paper_estimate(irc.sweep(chosen, omega_values(omega, settings), grid))
+    best["pixels"] = int(np.count_nonzero(inside))
+    best["grid"] = grid
+    return best
+
+
+def merge_groups(estimates, settings):
+    """Groups of regions sharing a centre: union-find on ``|centre difference| <=
+    centre_px`` and ``|omega difference| <= omega_rel * max |omega|``.
+
+    Returns
+    -------
+    list of list of int
+        Region indices per group, in order of first member.
+    """
+    parent = list(range(len(estimates)))
+
+    def root(i):
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    for i, a in enumerate(estimates):
+        for j in range(i):
+            b = estimates[j]
+            near = math.hypot(a["xi"] - b["xi"], a["eta"] - b["eta"]) <= settings["centre_px"]
+            speed = abs(a["omega"] - b["omega"]) <= settings["omega_rel"] * max(
+                abs(a["omega"]), abs(b["omega"]))
+            if near and speed:
+                parent[root(i)] = root(j)
+    groups = {}
+    for i in range(len(estimates)):
+        groups.setdefault(root(i), []).append(i)
+    return list(groups.values())
+
+
+def search_discs(data, settings, rng):
+    """Step 1: the retained discs ``(n, 6)`` of the chosen search, and its evaluations."""
+    if settings["search"] == "nichega":
+        from replication.motion.segment_baselines import nichega_discs
+
+        return nichega_discs(data, settings["ea"], settings["nichega"], rng)
+    found = disc_ea.DiscEA(data, settings["ea"], rng=rng).run()
+    return found["retained"], found["evaluations"]
+
+
+def segment(frames, settings, rng):
+    """The whole pipeline on one sequence.
+
+    Parameters
+    ----------
+    frames : (T, H, W) ndarray, T >= 2
+    settings : dict
+        From :func:`settings_from`.
+    rng : numpy.random.Generator or int or None
+        Drives the disc search only; the rest is deterministic.
+
+    Returns
+    -------
+    dict
+        ``objects``: list of ``{xi, eta, omega, area, mask ((H, W) bool), peak, regions}``;
+        ``discs`` (retained, (n, 6)), ``rotating`` ((n,) bool), ``regions`` (per rotating
+        disc: snake ``rho``, ``centre``, ``mask``, refined estimate or None), ``seconds``
+        per step, ``evaluations``.
+    """
+    ea = settings["ea"]
+    clock = [time.perf_counter()]
+    data = disc_ea.disc_data(frames, sigma=ea["sigma"],
+                             relative_threshold=ea["relative_threshold"], power=ea["power"])
+    pixels = dense_to_pixels(data)
+    discs, evaluations = search_discs(data, settings, np.random.default_rng(rng))
+    rotating, _ = disc_ea.rotating_discs(discs, data, ea)
+    clock.append(time.perf_counter())
+    snake = dict(settings["snake"])
+    snake["steps"] = tuple(int(s) for s in snake["steps"])
+    regions = [snakes.radial_snake(data, disc, **snake) for disc in discs[rotating]]
+    clock.append(time.perf_counter())
+    for region, disc in zip(regions, discs[rotating]):
+        region["estimate"] = restricted_accumulation(pixels, region["mask"], disc[5],
+                                                     settings["accumulation"],
+                                                     margin=ea["margin"])
+    good = [i for i, region in enumerate(regions) if region["estimate"] is not None]
+    objects = []
+    for group in merge_groups([regions[i]["estimate"] for i in good], settings["merge"]):
+        members = [good[i] for i in group]
+        mask = np.logical_or.reduce([regions[i]["mask"] for i in members])
+        if np.count_nonzero(mask) < settings["merge"]["min_area"]:
+            continue
+        omega = float(np.median([regions[i]["estimate"]["omega"] for i in members]))
+        final = restricted_accumulation(pixels, mask, omega, settings["accumulation"],
+                                        margin=ea["margin"])
+        if final is None:
+            continue
+        objects.append({"xi": final["xi"], "eta": final["eta"], "omega": final["omega"],
+                        "peak": final["peak"], "area": int(np.count_nonzero(mask)),
+                        "mask": mask, "regions": members, "grid": final["grid"]})
+    clock.append(time.perf_counter())
+    steps = ("search", "snakes", "accumulation")
+    return {"objects": objects, "discs": discs, "rotating": rotating, "regions": regions,
+            "evaluations": evaluations, "pixels": pixels,
+            "seconds": {s: clock[k + 1] - clock[k] for k, s in enumerate(steps)}}

@@ -143,7 +143,8 @@ def baselines_study(config, out):
     checkpoints = _checkpoints(budgets[-1])
     figures = cloth_baselines_ecdf.plot(summary, checkpoints, budgets[-1],
                                         ecdf_name=config["figures"]["ecdf"],
-                                        convergence_name=config["figures"]["convergence"])
+                                        convergence_name=config["figures"]["convergence"],
+                                        figure_dir=config["figure_dir"])
     best_label = cases[-1].label
     return {"budgets": budgets, "names": names, "checkpoints": checkpoints,
             "summary": summary, "runs": runs, "figures": figures,

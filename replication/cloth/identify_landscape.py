@@ -88,7 +88,8 @@ def landscapes(config, out):
                  f"{len(path)} generations")
         figures.append(fig09_10_landscapes.plot(
             panels, path, reference=(reference[3], tau_ref), title=case.label,
-            out_name=config["figures"][case.label]))
+            out_name=config["figures"][case.label],
+            figure_dir=config["figure_dir"]))
         results[case.label] = {
             "panels": {name: p["summary"] for name, p in panels.items()},
             "ea_path": path, "ea_final": score(ea.X[0], case, config["success_rtol"]),

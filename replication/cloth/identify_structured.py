@@ -147,30 +147,39 @@ def regress_stiffness(trajectory, *, model="5", frames, trim_rounds=6, trim_fact
     return k, rest, info
 
 
-def scan_tau(objective, base, tau_index, *, n_grid, refine_evals):
-    """Stage 2 for one tau entry: grid over its bounds (log-spaced), then a bounded scalar
-    refinement between the grid neighbours of the best point. Returns the new vector."""
-    low, high = objective.lower[tau_index], objective.upper[tau_index]
+def scan_tau(objective, base, indices, *, n_grid, refine_evals):
+    """Stage 2 for one group of tau entries set to a common value: grid over the bounds
+    (log-spaced), then a bounded scalar refinement between the grid neighbours of the
+    best point. The answer is read from the objective's best-so-far point."""
+    indices = list(indices)
+    low = objective.lower[indices].max()
+    high = objective.upper[indices].min()
     grid = np.geomspace(low, high, n_grid)
     X = np.repeat(base[None, :], n_grid, axis=0)
-    X[:, tau_index] = grid
-    values = objective.evaluate(X)
-    best = int(np.argmin(values))
+    X[:, indices] = grid[:, None]
+    best = int(np.argmin(objective.evaluate(X)))
     lo, hi = grid[max(best - 1, 0)], grid[min(best + 1, n_grid - 1)]
-    x = base.copy()
-    x[tau_index] = grid[best]
 
     def along(tau):
         trial = base.copy()
-        trial[tau_index] = tau
+        trial[indices] = tau
         return float(objective.evaluate(trial[None, :])[0])
 
     if refine_evals > 0 and hi > lo:
-        fit = minimize_scalar(along, bounds=(lo, hi), method="bounded",
-                              options={"maxiter": refine_evals, "xatol": 1e-6 * (hi - lo)})
-        if fit.fun <= values[best]:
-            x[tau_index] = fit.x
-    return x
+        minimize_scalar(along, bounds=(lo, hi), method="bounded",
+                        options={"maxiter": refine_evals, "xatol": 1e-6 * (hi - lo)})
+
+
+def tau_groups(model, n_var):
+    """Groups of tau indices scanned together: all taus, then (18 parameters) each spring
+    family's pair, then each type. A spring's clamp changes its particles' mean correction
+    (Jacobi pass), so taus of one family are coupled and are scanned jointly first."""
+    if model != "18":
+        return [[n_var - 1]]
+    first = n_var - N_TYPES
+    families = [[first + t for t in range(N_TYPES) if FAMILY_OF_TYPE[t] == f]
+                for f in range(3)]
+    return [list(range(first, n_var)), *families, *[[i] for i in range(first, n_var)]]
 
 
 def structured_identify(trajectory, objective, space, *, rng, settings):
@@ -184,7 +193,7 @@ def structured_identify(trajectory, objective, space, *, rng, settings):
     rng : np.random.Generator
     settings : dict
         ``regression: {first, stride, trim_rounds, trim_factor}``,
-        ``tau_scan: {n_grid, refine_evals}``,
+        ``tau_scan: {n_grid, refine_evals, cycles}``,
         ``refine: {box (relative half-width), ea: {...EASettings}}``.
 
     Returns
@@ -207,9 +216,13 @@ def structured_identify(trajectory, objective, space, *, rng, settings):
     info = {"regression": reg_info, "regression_vector": x.tolist()}
     scan = settings["tau_scan"]
     try:
-        for tau_index in range(space.n_var - n_tau, space.n_var):
-            x = scan_tau(objective, x, tau_index, n_grid=scan["n_grid"],
+        # coordinate-wise scans, repeated: with several taus, one scan's answer depends
+        # on the others' current values
+        for _ in range(int(scan.get("cycles", 1))):
+            for group in tau_groups(model, space.n_var):
+                scan_tau(objective, x, group, n_grid=scan["n_grid"],
                          refine_evals=scan["refine_evals"])
+                x = objective.best_point.copy()
         info["scan_vector"] = x.tolist()
         info["evals_after_scan"] = objective.n_evals
         refine = settings["refine"]

@@ -82,7 +82,8 @@ def paper_ea_study(config, out):
             good, bad = int(np.argmin(costs)), int(np.argmax(costs))
             tables = {"good": _table(eas[good], case, top), "bad": _table(eas[bad], case, top)}
             chosen = {"good": good, "bad": bad, "ea": eas[good]}
-    figure = cloth_paper_ea_convergence.plot(runs, out_name=config["figure"])
+    figure = cloth_paper_ea_convergence.plot(runs, out_name=config["figure"],
+                                              figure_dir=config["figure_dir"])
     best_ea = chosen["ea"]
     case = next(c for c in cases if c.label == table_label)
     return {

@@ -15,7 +15,7 @@ def _ecdf(ax, hits, budget, label):
     ax.step(x, y, where="post", label=label)
 
 
-def plot(summary, checkpoints, budget, *, ecdf_name, convergence_name):
+def plot(summary, checkpoints, budget, *, ecdf_name, convergence_name, figure_dir="figures"):
     """``summary[data][optimiser]`` with ``evals_to_success`` and ``median_curve``."""
     fig, axes = new_figure(len(summary))
     for ax, (label, by_opt) in zip(axes[0], summary.items()):
@@ -27,7 +27,7 @@ def plot(summary, checkpoints, budget, *, ecdf_name, convergence_name):
         ax.set_ylabel("fraction of seeds with all parameters within 1%")
         ax.set_title(f"{label}: evaluations to success (ECDF)")
         ax.legend(fontsize=7)
-    ecdf = save(fig, ecdf_name)
+    ecdf = save(fig, ecdf_name, figure_dir)
     fig, axes = new_figure(len(summary))
     for ax, (label, by_opt) in zip(axes[0], summary.items()):
         for name, s in by_opt.items():
@@ -37,4 +37,4 @@ def plot(summary, checkpoints, budget, *, ecdf_name, convergence_name):
         ax.set_ylabel("median best cost over seeds")
         ax.set_title(f"{label}: convergence")
         ax.legend(fontsize=7)
-    return [ecdf, save(fig, convergence_name)]
+    return [ecdf, save(fig, convergence_name, figure_dir)]

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import matplotlib
 
 matplotlib.use("Agg")
@@ -9,16 +11,17 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 from replication.provenance import PROJECT_ROOT  # noqa: E402
 
-FIGURE_DIR = PROJECT_ROOT / "figures"
 
-
-def save(fig, name):
-    """Write ``fig`` to ``figures/name`` deterministically; return the relative path."""
-    FIGURE_DIR.mkdir(parents=True, exist_ok=True)
-    path = FIGURE_DIR / name
-    fig.savefig(path, dpi=110, metadata={"Software": None})
+def save(fig, name, figure_dir="figures"):
+    """Write ``fig`` to ``figure_dir/name`` deterministically (a relative ``figure_dir`` is
+    inside the project); return the path as written in the report."""
+    folder = Path(figure_dir)
+    if not folder.is_absolute():
+        folder = PROJECT_ROOT / folder
+    folder.mkdir(parents=True, exist_ok=True)
+    fig.savefig(folder / name, dpi=110, metadata={"Software": None})
     plt.close(fig)
-    return f"figures/{name}"
+    return f"{figure_dir}/{name}"
 
 
 def new_figure(n_cols, *, n_rows=1, width=5.0, height=3.8):

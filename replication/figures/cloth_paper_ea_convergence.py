@@ -5,7 +5,7 @@ from __future__ import annotations
 from replication.figures.cloth_common import new_figure, save
 
 
-def plot(runs, *, out_name):
+def plot(runs, *, out_name, figure_dir="figures"):
     """``runs``: ``{label: [record with 'history' (best cost per generation), 'success']}``."""
     fig, axes = new_figure(len(runs))
     for ax, (label, records) in zip(axes[0], runs.items()):
@@ -17,4 +17,4 @@ def plot(runs, *, out_name):
         ax.set_title(f"paper EA on {label} ({len(records)} seeds; green: truth within 1%)")
         ax.set_xlabel("generation")
         ax.set_ylabel("best cost")
-    return save(fig, out_name)
+    return save(fig, out_name, figure_dir)

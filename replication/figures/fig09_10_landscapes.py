@@ -8,7 +8,7 @@ from matplotlib.colors import LogNorm
 from replication.figures.cloth_common import new_figure, save
 
 
-def plot(panels, path, *, reference, title, out_name):
+def plot(panels, path, *, reference, title, out_name, figure_dir="figures"):
     """``panels[f"{cost}/{window}"]`` with ``K, tau, log, cost`` grids; ``path`` rows
     ``(K, tau, best cost)`` per generation; ``reference`` the true ``(K, tau)``."""
     names = list(panels)
@@ -40,4 +40,4 @@ def plot(panels, path, *, reference, title, out_name):
             ax.set_ylabel("tau")
             ax.set_title(f"{title}: {kind} cost, {window} window", fontsize=9)
     axes[0, 0].legend(fontsize=6, loc="lower left")
-    return save(fig, out_name)
+    return save(fig, out_name, figure_dir)

@@ -1,0 +1,118 @@
+"""The paper's EA mechanics, the structured identifier and the cloth objective."""
+
+import numpy as np
+import pytest
+
+from replication.cloth import identify_problem as problem
+from replication.cloth.identify import (
+    EASettings, PaperEA, identify, mutate, reflect, uniform_crossover,
+)
+from replication.cloth.io import read_trajectory
+from replication.errors import InputError
+from replication.optim.objective import Objective
+
+REFERENCE = "synthetic_data/cloth/reference_tau0.5.npz"
+BOUNDS = {"rest": [0.8, 1.2], "K": [0.1, 10.0], "tau": [0.01, 1.0]}
+
+
+@pytest.fixture(scope="module")
+def trajectory():
+    return read_trajectory(REFERENCE)
+
+
+def quadratic_objective(n_var=5):
+    return Objective(lambda X: ((np.asarray(X) - 0.3) ** 2).sum(axis=1), np.zeros(n_var),
+                     np.ones(n_var))
+
+
+def test_paper_rates_give_50_20_30_of_100():
+    assert EASettings().counts() == (50, 20, 30)
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"pop_size": 3}, "population under 4"),
+    ({"keep": 0.6}, "rates do not add up"),
+    ({"mutation_scale": 0.0}, "mutation_scale"),
+    ({"mutate_from": 1.5}, "fraction in"),
+])
+def test_bad_ea_settings_are_refused_with_the_setting(change, message):
+    with pytest.raises(InputError, match=message):
+        EASettings.from_config(change)
+
+
+def test_best_half_survives_unchanged_and_offspring_follow_the_rules():
+    rng = np.random.default_rng(0)
+    objective = quadratic_objective()
+    settings = EASettings(pop_size=20, generations=0)
+    ea = PaperEA(objective, settings, rng, rng.random((20, 5))).run()
+    before_X, before_F = ea.X.copy(), ea.F.copy()
+    children = ea.offspring()
+    n_keep, n_mut, n_cross = settings.counts()
+    assert children.shape == (n_mut + n_cross, 5)
+    pool_mut = before_X[:16]   # best 80%
+    for child in children[:n_mut]:
+        changed = (np.abs(pool_mut - child) > 0).sum(axis=1)
+        assert changed.min() == 1, "a mutant differs from a best-80% parent in one parameter"
+    pool_cross = before_X[:10]   # best 50%
+    for child in children[n_mut:]:
+        for j, gene in enumerate(child):
+            assert gene in pool_cross[:, j], "crossover genes come from best-50% parents"
+    ea.step()
+    kept = before_X[:n_keep]
+    for row, value in zip(kept, before_F[:n_keep]):
+        match = np.flatnonzero((ea.X == row).all(axis=1))
+        assert match.size and ea.F[match[0]] == value
+    assert np.all(np.diff(ea.F) >= 0) and objective.n_evals == 20 + n_mut + n_cross
+
+
+def test_mutation_and_reflection_stay_in_bounds():
+    rng = np.random.default_rng(1)
+    lower, upper = np.zeros(3), np.ones(3)
+    children = mutate(np.full((50, 3), 0.99), rng, lower=lower, upper=upper, scale=0.5,
+                      n_params=2)
+    assert np.all((children >= 0) & (children <= 1))
+    assert np.allclose(reflect(np.array([1.2, -0.3, 2.5]), lower, upper), [0.8, 0.3, 0.5])
+    pool = np.arange(12.0).reshape(4, 3)
+    crossed = uniform_crossover(pool, 5, 3, rng)
+    assert all(crossed[i, j] in pool[:, j] for i in range(5) for j in range(3))
+
+
+def test_same_seed_same_paper_ea_run_on_the_cloth_cost(trajectory):
+    runs = []
+    for seed in (5, 5, 6):
+        best, cost, info = identify(trajectory, rng=seed, method="paper_ea",
+                                    settings={"ea": {"pop_size": 8, "generations": 3},
+                                              "rest_spread": 0.1})
+        runs.append((best.tolist(), cost, info["n_evals"]))
+    assert runs[0] == runs[1] and runs[0] != runs[2]
+    assert runs[0][2] == 8 + 3 * 4
+
+
+def test_residuals_squared_sum_to_the_cost(trajectory):
+    cost = problem.cost_from_config(trajectory, {"kind": "frames", "frames": [150, 300]})
+    space = problem.search_space(trajectory, BOUNDS)
+    X = problem.random_population(space, 4, np.random.default_rng(2), rest_spread=0.1)
+    residuals = problem.residual_function(cost)(X)
+    np.testing.assert_allclose((residuals ** 2).sum(axis=1),
+                               cost(problem.params_from_vectors(X)), rtol=1e-9)
+
+
+def test_structured_identifier_finds_the_truth_without_meta(trajectory):
+    blind = type(trajectory)(**{**trajectory.__dict__, "meta": {}})
+    settings = {"regression": {"first": 1, "stride": 25, "trim_rounds": 6,
+                               "trim_factor": 10.0, "frame_quantile": 0.5},
+                "tau_scan": {"n_grid": 60, "refine_evals": 30},
+                "refine": {"box": 0.02, "ea": {"pop_size": 8, "generations": 2}}}
+    best, cost, info = identify(blind, rng=0, budget=1000, settings=settings)
+    truth = problem.truth_vector(trajectory)
+    assert problem.is_success(best, truth, 1e-6) and info["n_evals"] <= 1000
+
+
+def test_bounds_low_not_below_high_are_refused(trajectory):
+    with pytest.raises(InputError, match=r"bounds.K=\[5.0, 1.0\]: low >= high"):
+        problem.search_space(trajectory, {**BOUNDS, "K": [5.0, 1.0]})
+
+
+def test_frame_outside_the_data_is_refused(trajectory):
+    with pytest.raises(InputError, match="outside the data"):
+        problem.cost_from_config(trajectory, {"kind": "frames", "frames": [150, 900]})

@@ -1,0 +1,66 @@
+"""Identification experiments through the real command line and their refusals."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from hydra import compose, initialize_config_dir
+from omegaconf import OmegaConf
+
+from replication.cli import CONFIG_DIR, run_experiment
+from replication.errors import InputError
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def run_cli(*overrides):
+    command = [str(ROOT / ".venv" / "bin" / "replicate"), *overrides]
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    return subprocess.run(command, cwd=ROOT, capture_output=True, text=True, env=env,
+                          timeout=300)
+
+
+def composed(name, *overrides):
+    with initialize_config_dir(config_dir=CONFIG_DIR, version_base="1.3"):
+        cfg = compose(config_name="config", overrides=[f"experiment={name}", *overrides])
+    return OmegaConf.to_container(cfg, resolve=True)
+
+
+def test_identify_any_file_through_the_command_line(tmp_path):
+    out = tmp_path / "out"
+    done = run_cli("experiment=cloth_identify", f"out={out}", "budget=400",
+                   f"data.path={ROOT / 'synthetic_data/cloth/reference_tau0.1.npz'}")
+    assert done.returncode == 0, done.stderr
+    result = json.loads((out / "result.json").read_text())
+    assert set(result["best"]) == {"l01", "l23", "l45", "K", "tau", "cost"}
+    assert result["population"][0]["cost"] == result["best"]["cost"]
+    assert result["n_evals"] <= 400 and result["success"]
+
+
+def test_ci_check_exits_non_zero_when_a_tolerance_is_violated(tmp_path):
+    out = tmp_path / "out"
+    done = run_cli("experiment=cloth_ci", f"out={out}", "method=paper_ea",
+                   "ea.generations=1")
+    assert done.returncode == 2
+    assert "outside tolerance." in done.stderr and done.stderr.count("\n") == 1
+    assert not (out / "result.json").exists()
+
+
+@pytest.mark.parametrize("name, overrides, message", [
+    ("cloth_identify", ["bounds.K=[5.0,1.0]"], "low >= high"),
+    ("table1_2", ["ea.pop_size=3"], "population under 4"),
+    ("table1_2", ["ea.keep=0.6"], "rates do not add up"),
+    ("cloth_identify", ["cost.frame=600"], "outside the data"),
+    ("cloth_baselines", ["cost.frame=500"], "outside the data"),
+    ("cloth_ci", ["+tolerance.E=0.01"], "one per parameter"),
+])
+def test_bad_input_is_refused_before_anything_is_written(tmp_path, name, overrides,
+                                                         message):
+    out = tmp_path / "out"
+    config = composed(name, *overrides, f"out={out}", f"figure_dir={tmp_path / 'fig'}")
+    with pytest.raises(InputError, match=message):
+        run_experiment(config, out)
+    assert not (out / "result.json").exists() and not (tmp_path / "fig").exists()

@@ -1,0 +1,204 @@
+"""Baselines for one rotation: optical flow + rigid fit, direct least squares, CMA-ES.
+
+All take ``frames`` (T, H, W) and return ``{xi, eta, omega}`` (and a few diagnostics).
+Optical flow and direct least squares use the first frame pair; CMA-ES scores every pair.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import ndimage
+
+from replication.motion.derivatives import sequence_derivatives
+from replication.motion.irc import tukey_weights
+
+
+def _centre_from_affine(a, b, tx, ty):
+    """``(xi, eta, omega)`` of the displacement ``d = [[a, -b], [b, a]] (p - c0) + t``.
+
+    The map ``p -> p + d`` is rotated by ``atan2(b, 1 + a)`` (its scale is dropped) and
+    its fixed point is the rotation centre, relative to the origin ``c0`` of ``p``.
+    """
+    omega = math.atan2(b, 1.0 + a)
+    linear = np.array([[a, -b], [b, a]])
+    try:
+        centre = np.linalg.solve(-linear, np.array([tx, ty]))
+    except np.linalg.LinAlgError:
+        centre = np.array([np.nan, np.nan])
+    return float(centre[0]), float(centre[1]), float(omega)
+
+
+def rigid_fit(u, v, mask, *, tukey_c=1.0, iterations=10):
+    """Robust least-squares rotation fitted to a displacement field.
+
+    Fits ``(u, v) = [[a, -b], [b, a]] (x - x0, y - y0) + (tx, ty)`` (exact for a finite
+    rotation about any centre, plus a scale) by iteratively reweighted least squares with
+    Tukey's biweight on the displacement residual (pixels).
+
+    Parameters
+    ----------
+    u, v : (H, W) ndarray
+        Displacement along x (columns) and y (rows), pixels/frame.
+    mask : (H, W) ndarray of bool
+        Pixels used.
+    tukey_c : float
+        Tukey's constant, pixels.
+
+    Returns
+    -------
+    dict
+        ``xi, eta, omega``.
+    """
+    rows, cols = np.nonzero(mask)
+    if rows.size < 3:
+        return {"xi": math.nan, "eta": math.nan, "omega": math.nan}
+    x0, y0 = cols.mean(), rows.mean()
+    X, Y = cols - x0, rows - y0
+    one, zero = np.ones_like(X), np.zeros_like(X)
+    design = np.concatenate([np.stack([X, -Y, one, zero], axis=1),
+                             np.stack([Y, X, zero, one], axis=1)])
+    target = np.concatenate([u[rows, cols], v[rows, cols]])
+    weights = np.ones(rows.size)
+    params = np.zeros(4)
+    for _ in range(iterations):
+        root = np.sqrt(np.concatenate([weights, weights]))
+        params, *_ = np.linalg.lstsq(design * root[:, None], target * root, rcond=None)
+        residual = (design @ params - target).reshape(2, -1)
+        weights = tukey_weights(np.hypot(*residual), tukey_c)
+        if np.count_nonzero(weights) < 3:
+            break
+    xi, eta, omega = _centre_from_affine(*params)
+    return {"xi": float(xi + x0), "eta": float(eta + y0), "omega": omega}
+
+
+def optical_flow_rotation(frames, *, method="tvl1", motion_min=0.25, erode=5, tukey_c=1.0,
+                          flow_options=None):
+    """scikit-image optical flow on the first pair, then :func:`rigid_fit` on moving pixels.
+
+    Parameters
+    ----------
+    frames : (T, H, W) ndarray
+    method : {"tvl1", "ilk"}
+        ``skimage.registration.optical_flow_tvl1`` or ``optical_flow_ilk``.
+    motion_min : float
+        Pixels whose flow is shorter than this (pixels/frame) are taken as background.
+    erode : int
+        The moving region is eroded by a disc of this radius (pixels): flow is smoothed
+        across the object's edge, as the IRC refinement's region is.
+    flow_options : dict or None
+        Keyword arguments of the flow function.
+
+    Returns
+    -------
+    dict
+        ``xi, eta, omega`` and ``flow`` ((2, H, W): ``u`` along x, ``v`` along y).
+    """
+    from skimage.registration import optical_flow_ilk, optical_flow_tvl1
+
+    function = {"tvl1": optical_flow_tvl1, "ilk": optical_flow_ilk}[method]
+    # skimage returns (row, col) = (v, u), the displacement from frame 0 to frame 1
+    v, u = function(frames[0], frames[1], **(flow_options or {}))
+    moving = np.hypot(u, v) >= motion_min
+    if erode > 0:
+        rows, cols = np.mgrid[-erode: erode + 1, -erode: erode + 1]
+        moving = ndimage.binary_erosion(moving, rows ** 2 + cols ** 2 <= erode ** 2)
+    border = 4
+    moving[:border], moving[-border:], moving[:, :border], moving[:, -border:] = (False,) * 4
+    fit = rigid_fit(u, v, moving, tukey_c=tukey_c)
+    fit["flow"] = np.stack([u, v])
+    return fit
+
+
+def direct_least_squares(frames, *, sigma=1.5, relative_threshold=0.15):
+    """Least squares on the IRC equation over every pixel with a sufficient gradient.
+
+    With ``p = omega eta`` and ``q = -omega xi`` the IRC equation is linear:
+    ``omega (Iy x - Ix y) + p Ix + q Iy = -It``. No region is selected, so the static
+    background takes part, as it would in a naive use of the equation.
+
+    Returns
+    -------
+    dict
+        ``xi, eta, omega``.
+    """
+    pixels = sequence_derivatives(frames[:2], sigma=sigma, relative_threshold=relative_threshold)
+    x0, y0 = pixels.x.mean(), pixels.y.mean()
+    X, Y = pixels.x - x0, pixels.y - y0
+    design = np.stack([pixels.gy * X - pixels.gx * Y, pixels.gx, pixels.gy], axis=1)
+    (omega, p, q), *_ = np.linalg.lstsq(design, -pixels.gt, rcond=None)
+    if omega == 0:
+        return {"xi": math.nan, "eta": math.nan, "omega": 0.0}
+    return {"xi": float(x0 - q / omega), "eta": float(y0 + p / omega), "omega": float(omega)}
+
+
+def irc_cost(pixels, *, tau=2.0):
+    """The objective ``evaluate(X: (pop, 3)) -> (pop,)`` of the IRC residual.
+
+    For ``X[k] = (xi, eta, omega)``: the mean over pixels of ``min(d^2, tau^2)``, where
+    ``d`` is the distance (pixels) from ``(xi, eta)`` to the pixel's IRC line (the paper's
+    2.3 residual normalised by the gradient, truncated so the background does not
+    dominate): a continuous form of the accumulator's peak. ``omega = 0`` scores ``tau^2``.
+    """
+    x, y, gx, gy, gt = pixels.x, pixels.y, pixels.gx, pixels.gy, pixels.gt
+    norm = np.hypot(gx, gy)
+    state = {"evaluations": 0}
+
+    def evaluate(X):
+        X = np.atleast_2d(X)
+        xi, eta, omega = X[:, 0:1], X[:, 1:2], X[:, 2:3]
+        safe = np.where(omega == 0, 1.0, omega)
+        residual = -gx * (y - eta) + gy * (x - xi) + gt / safe
+        cost = np.minimum((residual / norm) ** 2, tau * tau).mean(axis=1)
+        state["evaluations"] += X.shape[0]
+        return np.where(omega[:, 0] == 0, tau * tau, cost)
+
+    evaluate.state = state
+    return evaluate
+
+
+def cmaes_rotation(frames, *, seed, sigma=1.5, relative_threshold=0.15, tau=2.0,
+                   max_evals=3000, omega_bounds=(-0.05, 0.05), max_pixels=8000):
+    """pymoo CMA-ES on :func:`irc_cost` over ``(xi, eta, omega)`` in the image and sweep.
+
+    Parameters
+    ----------
+    seed : int
+        pymoo's seed (results are reproducible for a given seed).
+    max_pixels : int
+        Pixels scored per evaluation (an evenly strided subset, for speed).
+
+    Returns
+    -------
+    dict
+        ``xi, eta, omega, cost, evaluations``.
+    """
+    from pymoo.algorithms.soo.nonconvex.cmaes import CMAES
+    from pymoo.core.problem import Problem
+    from pymoo.optimize import minimize
+
+    pixels = sequence_derivatives(frames, sigma=sigma, relative_threshold=relative_threshold)
+    stride = max(1, len(pixels) // max_pixels)
+    subset = type(pixels)(*(getattr(pixels, f)[::stride]
+                            for f in ("x", "y", "gx", "gy", "gt", "pair")))
+    evaluate = irc_cost(subset, tau=tau)
+    height, width = frames.shape[1:]
+    lower = np.array([0.0, 0.0, omega_bounds[0]])
+    upper = np.array([width - 1.0, height - 1.0, omega_bounds[1]])
+
+    class _IRCProblem(Problem):
+        def __init__(self):
+            super().__init__(n_var=3, n_obj=1, xl=lower, xu=upper)
+
+        def _evaluate(self, X, out, *args, **kwargs):
+            out["F"] = evaluate(X)
+
+    rng = np.random.default_rng(seed)
+    x0 = lower + rng.random(3) * (upper - lower)
+    result = minimize(_IRCProblem(), CMAES(x0=x0, sigma=0.3, restarts=2),
+                      ("n_eval", max_evals), seed=int(seed), verbose=False)
+    xi, eta, omega = (float(v) for v in np.atleast_2d(result.X)[0])
+    return {"xi": xi, "eta": eta, "omega": omega, "cost": float(np.atleast_1d(result.F)[0]),
+            "evaluations": evaluate.state["evaluations"]}
+

@@ -1,0 +1,384 @@
+"""Runners of the motion experiments of issue 4 (paper 2.1-2.2, Figs. 1-4).
+
+Each runner takes the resolved config (plain dict) and the output folder, validates its
+settings before writing anything, and returns the experiment's result keys.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from replication.errors import InputError, check
+from replication.motion import baselines, single
+from replication.motion.io import read_sequence, write_sequence_folder, write_sequence_npz
+from replication.motion.synth import make_sequence
+from replication.progress import progress
+from replication.provenance import file_sha256
+from replication.results import write_json_atomic
+
+FIGURE_DIR = Path("figures")
+
+
+def _sequence_spec(base, override):
+    spec = json.loads(json.dumps(base))
+    for key, value in override.items():
+        if isinstance(value, dict) and isinstance(spec.get(key), dict):
+            spec[key].update(value)
+        else:
+            spec[key] = value
+    return spec
+
+
+def _check_spec(name, spec):
+    where = f"sequences.{name}"
+    for key in ("center", "omega", "c_shape"):
+        check(key in spec, f"{where}: no '{key}'; expected it in the sequence or in 'base'")
+    check(len(spec["center"]) == 2, f"{where}.center: {spec['center']}; expected [xi, eta]")
+    check(spec["omega"] != 0, f"{where}.omega: 0; expected a non-zero rotation (rad/frame)")
+    check(int(spec.get("n_frames", 2)) >= 2,
+          f"{where}.n_frames: {spec.get('n_frames')}; expected at least 2")
+    check(spec.get("format", "npz") in ("npz", "png8", "png16"),
+          f"{where}.format: {spec.get('format')}; expected npz, png8 or png16")
+
+
+def make_data(config, out):
+    """Write every configured sequence with truth, labels and a manifest (sha256 per file).
+
+    Sequence ``k`` (in config order) draws its textures and noise from
+    ``default_rng([seed, k])``, so the files depend only on the config and the seed.
+    """
+    base = config.get("base", {})
+    items = list(config["sequences"].items())
+    check(len(items) > 0, "sequences: empty; expected at least one sequence")
+    specs = {name: _sequence_spec(base, override) for name, override in items}
+    for name, spec in specs.items():
+        _check_spec(name, spec)
+    data_dir = Path(config["data_dir"])
+    files, summary = {}, {}
+    for index, (name, spec) in enumerate(specs.items()):
+        progress(f"sequence {name}")
+        frames, labels, truth = make_sequence(spec, rng=np.random.default_rng([config["seed"],
+                                                                               index]))
+        fmt = spec.get("format", "npz")
+        if fmt == "npz":
+            written = [data_dir / f"{name}.npz"]
+            write_sequence_npz(written[0], frames, labels=labels, truth=truth)
+        else:
+            written = write_sequence_folder(data_dir / name, frames, labels=labels, truth=truth,
+                                            bits=8 if fmt == "png8" else 16)
+        for path in written:
+            files[str(path.relative_to(data_dir))] = file_sha256(path)
+        summary[name] = {"path": str(written[0] if fmt == "npz" else data_dir / name),
+                         "role": spec.get("role", "accuracy"), "format": fmt,
+                         "xi": spec["center"][0], "eta": spec["center"][1],
+                         "omega": spec["omega"], "n_frames": int(spec.get("n_frames", 2)),
+                         "object_texture": spec.get("object_texture", {}).get("kind"),
+                         "background_texture": spec.get("background_texture", {}).get("kind"),
+                         "noise_sigma": spec.get("noise_sigma", 0.0), "bits": spec.get("bits")}
+    manifest = {"config": {k: v for k, v in config.items() if k != "out"},
+                "sequences": summary, "files": files}
+    write_json_atomic(data_dir / "manifest.json", manifest)
+    progress(f"wrote {len(files)} files and manifest.json to {data_dir}")
+    return {"data_dir": str(data_dir), "sequences": summary, "files": files}
+
+
+def _load(path):
+    check(path is not None, "data.path: not set; expected a folder of frames or an .npz")
+    return read_sequence(path)
+
+
+def _check_settings(settings):
+    check(settings["omega_min"] < settings["omega_max"],
+          f"omega_min={settings['omega_min']}, omega_max={settings['omega_max']}: expected "
+          "omega_min < omega_max")
+    check(int(settings["omega_count"]) >= 2,
+          f"omega_count={settings['omega_count']}: expected at least 2 values")
+    check(settings["sigma"] >= 0, f"sigma={settings['sigma']}: expected >= 0 pixels")
+    check(0 < settings["relative_threshold"] < 1,
+          f"relative_threshold={settings['relative_threshold']}: expected a fraction in (0, 1)")
+    check(settings["cell"] > 0, f"cell={settings['cell']}: expected > 0 pixels")
+
+
+def _truth_of(sequence):
+    if sequence.truth and sequence.truth.get("objects"):
+        return sequence.truth["objects"][0]
+    return None
+
+
+def _draw_figures(sequence, found, settings, figure_dir):
+    """Figs. 1-4 for one sequence, from the arrays of :func:`single.find_rotation`."""
+    from replication.figures import (fig01_flow, fig02_peak_vs_omega, fig03_accumulator,
+                                     fig04_pixels)
+    from replication.motion import irc
+
+    figure_dir.mkdir(parents=True, exist_ok=True)
+    truth = _truth_of(sequence)
+    paper, refined, table, grid = found["paper"], found["refined"], found["table"], found["grid"]
+    flow = baselines.optical_flow_rotation(sequence.frames, method="tvl1")["flow"]
+    paths = [fig01_flow.draw(figure_dir / "fig01_flow.png", sequence.frames[0], flow)]
+    paths.append(fig02_peak_vs_omega.draw(
+        figure_dir / "fig02_peak_vs_omega.png", table["omega"], table["peak"],
+        best=paper["omega"], refined=refined["omega"],
+        truth=None if truth is None else truth["omega"]))
+    acc = irc.accumulate(found["pixels"], paper["omega"], grid)
+    extent = (grid.x0 - grid.cell / 2, grid.x0 + (grid.nx - 0.5) * grid.cell,
+              grid.y0 + (grid.ny - 0.5) * grid.cell, grid.y0 - grid.cell / 2)
+    paths.append(fig03_accumulator.draw(
+        figure_dir / "fig03_accumulator.png", acc, extent, peak=(paper["xi"], paper["eta"]),
+        truth=None if truth is None else (truth["xi"], truth["eta"]), omega=paper["omega"]))
+    pixels = found["pixels"]
+    first = pixels.pair == 0
+    distance = irc.line_distance(pixels, paper["xi"], paper["eta"], paper["omega"])[first]
+    closeness = np.zeros(sequence.frames.shape[1:])
+    closeness[pixels.y[first].astype(int), pixels.x[first].astype(int)] = np.clip(
+        1.0 - distance / settings["region_tol"], 0.0, 1.0)
+    outline = None if sequence.labels is None else sequence.labels[0] > 0
+    paths.append(fig04_pixels.draw(figure_dir / "fig04_pixels.png", closeness,
+                                   region=found["region"], label_outline=outline))
+    return [str(p) for p in paths]
+
+
+def single_rotation(config, out):
+    """Paper 2.2 on one sequence: ``irc`` (paper estimate), ``irc_refined``, Figs. 1-4.
+
+    ``data.path`` null means the paper-like synthetic sequence ``default_data``, and the
+    figures go to ``figures/``; for any other sequence they go to ``out/figures``.
+    """
+    settings = single.settings_from(config.get("method"))
+    _check_settings(settings)
+    given = config.get("data", {}).get("path")
+    sequence = _load(given or config["default_data"])
+    progress(f"{sequence.source}: {sequence.frames.shape[0]} frames of "
+             f"{sequence.frames.shape[1]} x {sequence.frames.shape[2]}")
+    found = single.find_rotation(sequence.frames, settings)
+    paper, refined = found["paper"], found["refined"]
+    progress(f"paper: {paper}; refined: {refined}")
+    result = {
+        "data": sequence.source,
+        "irc": paper,
+        "irc_refined": refined,
+        "seconds": found["seconds"],
+        "pixels_used": int(len(found["pixels"])),
+        "region_pixels": int(np.count_nonzero(found["region"])),
+        "sweep": {key: found["table"][key].tolist() for key in ("omega", "xi", "eta", "peak")},
+    }
+    truth = _truth_of(sequence)
+    if truth is not None:
+        result["truth"] = {k: truth[k] for k in ("xi", "eta", "omega")}
+        result["errors"] = {"paper": single.errors(paper, truth),
+                            "refined": single.errors(refined, truth)}
+    if config.get("figures", True):
+        figure_dir = FIGURE_DIR if given is None else Path(out) / "figures"
+        result["figures"] = _draw_figures(sequence, found, settings, figure_dir)
+    return result
+
+
+def _methods(config, settings):
+    """name -> function(frames, seed) -> {xi, eta, omega} for the accuracy table's baselines."""
+    flow = config.get("flow", {})
+    cmaes = config.get("cmaes", {})
+    motion_min, erode = flow.get("motion_min", 0.25), int(flow.get("erode", 5))
+    return {
+        "TV-L1 flow + rigid fit": lambda frames, seed: baselines.optical_flow_rotation(
+            frames, method="tvl1", motion_min=motion_min, erode=erode),
+        "iLK flow + rigid fit": lambda frames, seed: baselines.optical_flow_rotation(
+            frames, method="ilk", motion_min=motion_min, erode=erode),
+        "direct least squares": lambda frames, seed: baselines.direct_least_squares(
+            frames, sigma=settings["sigma"], relative_threshold=settings["relative_threshold"]),
+        "CMA-ES on IRC residual": lambda frames, seed: baselines.cmaes_rotation(
+            frames, seed=seed, sigma=settings["sigma"],
+            relative_threshold=settings["relative_threshold"],
+            max_evals=int(cmaes.get("max_evals", 1500)), tau=float(cmaes.get("tau", 2.0))),
+    }
+
+
+PAPER, REFINED = "paper (best peak)", "paper + refinement"
+
+
+def _row(name, noise, method, estimate, seconds, truth):
+    row = {"sequence": name, "noise_255": noise, "method": method, "xi": estimate["xi"],
+           "eta": estimate["eta"], "omega": estimate["omega"], "seconds": seconds}
+    row.update(single.errors(estimate, truth))
+    return row
+
+
+def _one_case(name, noise, frames, truth, methods, chosen, settings, seed):
+    """Rows of every chosen method on one noisy sequence."""
+    rows = []
+    if PAPER in chosen or REFINED in chosen:
+        found = single.find_rotation(frames, settings)
+        if PAPER in chosen:
+            rows.append(_row(name, noise, PAPER, found["paper"], found["seconds"]["paper"],
+                             truth))
+        if REFINED in chosen:
+            rows.append(_row(name, noise, REFINED, found["refined"],
+                             found["seconds"]["paper"] + found["seconds"]["refined"], truth))
+    for method in chosen:
+        if method in methods:
+            start = time.perf_counter()
+            estimate = methods[method](frames, seed)
+            rows.append(_row(name, noise, method, estimate, time.perf_counter() - start, truth))
+    return rows
+
+
+def _accuracy_sequences(config):
+    data_dir = Path(config["data_dir"])
+    manifest_path = data_dir / "manifest.json"
+    if not manifest_path.exists():
+        raise InputError(f"{manifest_path}: no such file; expected the manifest written by "
+                         "`replicate experiment=motion_data`")
+    sequences = json.loads(manifest_path.read_text())["sequences"]
+    chosen = {name: item for name, item in sequences.items() if item["role"] == "accuracy"}
+    limit = config.get("max_sequences")
+    if limit is not None:
+        chosen = dict(list(chosen.items())[: int(limit)])
+    check(len(chosen) > 0, f"{manifest_path}: no sequence with role 'accuracy'; expected at "
+          "least one")
+    return chosen
+
+
+def _summarise(rows, methods, noise_levels):
+    summary = []
+    for method in methods:
+        for noise in noise_levels:
+            mine = [r for r in rows if r["method"] == method and r["noise_255"] == noise]
+            centre = np.array([r["centre_px"] for r in mine], dtype=float)
+            omega = np.abs(np.array([r["omega_pct"] for r in mine], dtype=float))
+            seconds = np.array([r["seconds"] for r in mine], dtype=float)
+            centre = np.where(np.isfinite(centre), centre, np.inf)
+            omega = np.where(np.isfinite(omega), omega, np.inf)
+            goal_px, goal_pct = (1.0, 3.0) if noise == 0 else (2.0, 5.0)
+            summary.append({
+                "method": method, "noise_255": noise, "n": len(mine),
+                "centre_px_median": float(np.median(centre)),
+                "centre_px_max": float(np.max(centre)),
+                "omega_pct_median": float(np.median(omega)),
+                "omega_pct_max": float(np.max(omega)),
+                "seconds_median": float(np.median(seconds)),
+                "goal_px": goal_px, "goal_pct": goal_pct,
+                "within_goal": float(np.mean((centre <= goal_px) & (omega <= goal_pct))),
+            })
+    return summary
+
+
+def accuracy(config, out):
+    """The accuracy table: every method on every accuracy sequence at every noise level.
+
+    Noise ``sigma = noise_255 / 255`` is added at run time from
+    ``default_rng([seed, sequence index, noise index])``; times are wall-clock seconds of
+    each method on each case, in the same process, one after another.
+    """
+    from replication.motion.synth import degrade
+
+    settings = single.settings_from(config.get("method"))
+    _check_settings(settings)
+    noise_levels = [float(v) for v in config["noise_levels_255"]]
+    check(len(noise_levels) > 0 and min(noise_levels) >= 0,
+          f"noise_levels_255: {noise_levels}; expected a non-empty list of values >= 0")
+    methods = _methods(config, settings)
+    known = [PAPER, REFINED, *methods]
+    chosen = config.get("methods") or known
+    unknown = [name for name in chosen if name not in known]
+    check(not unknown, f"methods: unknown {unknown}; expected some of {known}")
+    sequences = _accuracy_sequences(config)
+    loaded = {name: read_sequence(item["path"]) for name, item in sequences.items()}
+    for sequence in loaded.values():
+        check(_truth_of(sequence) is not None,
+              f"{sequence.source}: truth: missing; expected ground truth for the accuracy table")
+    # compile the numba kernels before timing anything
+    single.paper_method(next(iter(loaded.values())).frames[:, :64, :64], settings)
+    rows = []
+    for i, (name, sequence) in enumerate(loaded.items()):
+        for j, noise in enumerate(noise_levels):
+            frames = degrade(sequence.frames, noise_sigma=noise / 255.0,
+                             rng=np.random.default_rng([config["seed"], i, j]))
+            case = _one_case(name, noise, frames, _truth_of(sequence), methods, chosen,
+                             settings, config["seed"])
+            rows.extend(case)
+            progress(f"{name} noise {noise:g}/255: " + ", ".join(
+                f"{r['method']} {r['centre_px']:.2f}px {r['omega_pct']:+.1f}%" for r in case))
+    truths = {name: _truth_of(s) for name, s in loaded.items()}
+    return {"sequences": {name: {k: truths[name][k] for k in ("xi", "eta", "omega")}
+                          for name in loaded},
+            "noise_levels_255": noise_levels, "methods": chosen, "rows": rows,
+            "summary": _summarise(rows, chosen, noise_levels)}
+
+
+def _median_time(function, repeats):
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        function()
+        times.append(time.perf_counter() - start)
+    return float(np.median(times))
+
+
+def benchmark(config, out):
+    """Voting throughput against ``skimage.transform.hough_line``, and the sweep time.
+
+    Both vote with the same pixels (those above the gradient threshold in the first frame
+    pair); Hough casts one vote per pixel and angle (``n_angles`` angles), the accumulation
+    one per accumulator column or row per pixel and omega. Medians of ``repeats`` runs after
+    a warm-up.
+    """
+    import numba
+    from skimage.transform import hough_line
+
+    from replication.motion import irc
+    from replication.motion.derivatives import sequence_derivatives
+
+    settings = single.settings_from(config.get("method"))
+    _check_settings(settings)
+    repeats = int(config.get("repeats", 5))
+    check(repeats >= 1, f"repeats={repeats}: expected at least 1")
+    sequence = _load(config.get("data", {}).get("path") or config["default_data"])
+    frames = sequence.frames[:2]
+    derive = lambda: sequence_derivatives(frames, sigma=settings["sigma"],  # noqa: E731
+                                          relative_threshold=settings["relative_threshold"])
+    pixels = derive()
+    grid = irc.image_grid(frames.shape[1:], margin=settings["margin"], cell=settings["cell"])
+    omegas = irc.omega_sweep(settings["omega_min"], settings["omega_max"],
+                             int(settings["omega_count"]))
+    irc.sweep(pixels, omegas, grid)
+    threads = numba.get_num_threads()
+    sweep_s = _median_time(lambda: irc.sweep(pixels, omegas, grid), repeats)
+    votes = int(irc.sweep(pixels, omegas, grid)["votes"].sum())
+    numba.set_num_threads(1)
+    try:
+        sweep_1thread_s = _median_time(lambda: irc.sweep(pixels, omegas, grid), repeats)
+    finally:
+        numba.set_num_threads(threads)
+    edges = np.zeros(frames.shape[1:], dtype=bool)
+    edges[pixels.y.astype(int), pixels.x.astype(int)] = True
+    angles = np.linspace(-np.pi / 2, np.pi / 2, int(config.get("n_angles", 180)),
+                         endpoint=False)
+    hough_line(edges, angles)
+    hough_s = _median_time(lambda: hough_line(edges, angles), repeats)
+    hough_votes = int(np.count_nonzero(edges)) * angles.size
+    derivatives_s = _median_time(derive, repeats)
+    found = single.find_rotation(sequence.frames, settings)
+    voting = votes / sweep_s
+    hough = hough_votes / hough_s
+    progress(f"voting {voting:.3g} cells/s ({threads} threads), hough_line {hough:.3g} votes/s")
+    metrics = {
+        "frame_height_px": frames.shape[1], "frame_width_px": frames.shape[2],
+        "omega_values": int(omegas.size), "voting_pixels": int(len(pixels)),
+        "numba_threads": threads,
+        "sweep_s": sweep_s,
+        "voting_cells_per_s": voting,
+        "voting_cells_per_s_1thread": votes / sweep_1thread_s,
+        "hough_line_votes_per_s": hough,
+        "voting_over_hough_ratio": voting / hough,
+        "voting_over_hough_ratio_1thread": votes / sweep_1thread_s / hough,
+        "derivatives_s": derivatives_s,
+        "paper_method_s": found["seconds"]["paper"],
+        "refinement_s": found["seconds"]["refined"],
+        "load_average_1min": os.getloadavg()[0],
+    }
+    return {"data": sequence.source, "metrics": metrics,
+            "goals": {"ratio_at_least": 1.0, "sweep_s_below": 1.5}}

@@ -1,0 +1,247 @@
+"""Image sequences (spec/data-formats.md): a folder of PNG/TIFF frames, or one ``.npz``.
+
+The reader refuses bad input with one line naming the file, the field, what was found and
+what was expected. Intensities are returned as float64: 8-bit data divided by 255, 16-bit
+by 65535, other dtypes unchanged. The writers are deterministic (same arrays, same bytes).
+"""
+
+from __future__ import annotations
+
+import json
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from replication.cloth.io import write_npz_deterministic
+from replication.errors import InputError
+
+FRAME_SUFFIXES = (".png", ".tif", ".tiff")
+
+
+@dataclass(frozen=True)
+class Sequence:
+    """An image sequence: ``frames`` (T, H, W) float64, optional ``labels`` (T, H, W) int
+    and ``truth`` (the ``truth.json`` object, or None), read from ``source``."""
+
+    frames: np.ndarray
+    labels: np.ndarray | None
+    truth: dict | None
+    source: str
+
+
+def _fail(path, field, found, expected):
+    raise InputError(f"{path}: {field}: found {found}; expected {expected}")
+
+
+def _to_float(path, field, array):
+    array = np.asarray(array)
+    if array.dtype == np.uint8:
+        return array.astype(float) / 255.0
+    if array.dtype == np.uint16:
+        return array.astype(float) / 65535.0
+    if array.dtype == np.bool_ or not np.issubdtype(array.dtype, np.number) \
+            or np.iscomplexobj(array):
+        _fail(path, field, f"dtype {array.dtype}", "real numbers (8- or 16-bit or float)")
+    return array.astype(float)
+
+
+def _luminance(path, image):
+    """Colour (H, W, 3|4) to luminance (Rec. 709, as ``skimage.color.rgb2gray``)."""
+    if image.ndim == 2:
+        return image
+    if image.ndim == 3 and image.shape[2] in (3, 4):
+        return image[..., :3] @ np.array([0.2125, 0.7154, 0.0721])
+    _fail(path, "shape", f"{image.shape}", "a grey (H, W) or colour (H, W, 3|4) image")
+    return image
+
+
+def read_image(path):
+    """One PNG (PIL) or TIFF (tifffile) frame as ``(H, W)`` float64 luminance."""
+    path = Path(path)
+    try:
+        if path.suffix.lower() == ".png":
+            from PIL import Image
+
+            with Image.open(path) as handle:
+                if handle.mode in ("P", "PA", "LA", "1"):
+                    handle = handle.convert("RGB" if handle.mode != "LA" else "L")
+                image = np.asarray(handle)
+                if handle.mode == "I;16" or handle.mode.startswith("I;16"):
+                    image = image.astype(np.uint16)
+                elif handle.mode == "I":
+                    image = image.astype(np.uint16) if image.max() < 65536 else image
+        else:
+            import tifffile
+
+            image = tifffile.imread(path)
+    except (OSError, ValueError) as error:
+        reason = str(error).splitlines()[0] if str(error) else type(error).__name__
+        raise InputError(f"{path}: cannot be read as an image ({reason}); expected a PNG "
+                         "or TIFF frame") from None
+    return _luminance(path, _to_float(path, "pixels", image))
+
+
+def _frame_files(folder):
+    files = sorted(p for p in folder.iterdir()
+                   if p.suffix.lower() in FRAME_SUFFIXES and not p.name.startswith("labels_"))
+    labels = sorted(p for p in folder.iterdir()
+                    if p.name.startswith("labels_") and p.suffix.lower() == ".png")
+    return files, labels
+
+
+def _check_frames(path, frames):
+    if frames.ndim != 3:
+        _fail(path, "frames", f"shape {frames.shape}", "(T, H, W)")
+    if frames.shape[0] < 2:
+        _fail(path, "frames", f"T = {frames.shape[0]} frame(s)", "T >= 2 frames")
+    if frames.shape[1] < 8 or frames.shape[2] < 8:
+        _fail(path, "frames", f"frames of {frames.shape[1]} x {frames.shape[2]} pixels",
+              "at least 8 x 8 pixels")
+    finite = np.isfinite(frames)
+    if not finite.all():
+        t = int(np.nonzero(~finite.reshape(frames.shape[0], -1).all(axis=1))[0][0])
+        _fail(path, f"frame {t}", f"{int(np.count_nonzero(~finite))} NaN or inf value(s)",
+              "finite intensities")
+    for t, frame in enumerate(frames):
+        if np.ptp(frame) == 0:
+            _fail(path, f"frame {t}", f"a constant image (all {frame.flat[0]:g})",
+                  "an image with some contrast (the method needs image gradients)")
+
+
+def _parse_truth(path, text):
+    try:
+        truth = json.loads(text)
+    except json.JSONDecodeError as error:
+        _fail(path, "truth", f"invalid JSON ({error.msg})", "a JSON object")
+    if not isinstance(truth, dict) or not isinstance(truth.get("objects", []), list):
+        _fail(path, "truth", "JSON without an 'objects' list",
+              '{"objects": [{"label", "xi", "eta", "omega"}]}')
+    for item in truth.get("objects", []):
+        missing = [k for k in ("xi", "eta", "omega") if not isinstance(item, dict) or k not in item]
+        if missing:
+            _fail(path, "truth", f"an object without {', '.join(missing)}",
+                  "objects with xi, eta and omega")
+    return truth
+
+
+def _read_folder(folder):
+    files, label_files = _frame_files(folder)
+    if not files:
+        _fail(folder, "frames", "no PNG or TIFF file", "frames named in time order "
+              "(e.g. frame_000.png, frame_001.png)")
+    images = [read_image(p) for p in files]
+    for p, image in zip(files, images):
+        if image.shape != images[0].shape:
+            _fail(p, "shape", f"{image.shape[0]} x {image.shape[1]} pixels",
+                  f"the shape of {files[0].name}, {images[0].shape[0]} x {images[0].shape[1]}")
+    frames = np.stack(images) if len(images) > 1 else images[0][None]
+    labels = None
+    if label_files:
+        from PIL import Image
+
+        stack = []
+        for p in label_files:
+            with Image.open(p) as handle:
+                stack.append(np.asarray(handle).astype(np.int64))
+        labels = np.stack(stack)
+    truth = None
+    if (folder / "truth.json").exists():
+        truth = _parse_truth(folder / "truth.json", (folder / "truth.json").read_text())
+    return frames, labels, truth
+
+
+def _read_npz(path):
+    try:
+        with np.load(path, allow_pickle=False) as archive:
+            raw = {key: archive[key] for key in archive.files}
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as error:
+        reason = str(error).splitlines()[0] if str(error) else type(error).__name__
+        raise InputError(f"{path}: cannot be read as .npz ({reason}); expected an image "
+                         "sequence with a 'frames' key") from None
+    if "frames" not in raw:
+        _fail(path, "frames", "no such key (keys: " + ", ".join(sorted(raw)) + ")",
+              "a 'frames' array of shape (T, H, W)")
+    frames = _to_float(path, "frames", raw["frames"])
+    labels = None
+    if "labels" in raw:
+        labels = raw["labels"]
+        if not np.issubdtype(labels.dtype, np.integer):
+            _fail(path, "labels", f"dtype {labels.dtype}", "integer labels (0 = background)")
+        labels = labels.astype(np.int64)
+    truth = _parse_truth(path, str(raw["truth"])) if "truth" in raw else None
+    return frames, labels, truth
+
+
+def read_sequence(path):
+    """Read and validate an image sequence (folder of frames or ``.npz``).
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    Sequence
+        ``frames`` of shape (T, H, W), float64.
+
+    Raises
+    ------
+    InputError
+        One line naming the file, the field, what was found and what was expected: no such
+        path, unreadable file, fewer than 2 frames, frames of different shapes, a constant
+        frame, NaN or inf, labels of the wrong shape, bad truth JSON.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise InputError(f"{path}: no such file or folder; expected a folder of PNG/TIFF "
+                         "frames or an .npz with 'frames' (shared/spec/data-formats.md)")
+    if path.is_dir():
+        frames, labels, truth = _read_folder(path)
+    elif path.suffix.lower() == ".npz":
+        frames, labels, truth = _read_npz(path)
+    else:
+        raise InputError(f"{path}: unsupported file type '{path.suffix}'; expected a folder "
+                         "of PNG/TIFF frames or an .npz with 'frames'")
+    _check_frames(path, frames)
+    if labels is not None and labels.shape != frames.shape:
+        _fail(path, "labels", f"shape {labels.shape}", f"the frames' shape {frames.shape}")
+    return Sequence(frames=frames, labels=labels, truth=truth, source=str(path))
+
+
+def write_sequence_npz(path, frames, *, labels=None, truth=None):
+    """Write a sequence as one deterministic ``.npz`` (float32 frames, uint8 labels)."""
+    arrays = {"frames": np.asarray(frames, dtype=np.float32)}
+    if labels is not None:
+        arrays["labels"] = np.asarray(labels, dtype=np.uint8)
+    if truth is not None:
+        arrays["truth"] = np.array(json.dumps(truth, sort_keys=True))
+    write_npz_deterministic(path, arrays)
+
+
+def write_sequence_folder(folder, frames, *, labels=None, truth=None, bits=8):
+    """Write a sequence as a folder of grey PNG frames (``frame_000.png``...), label PNGs
+    (``labels_000.png``...) and ``truth.json``; intensities in ``[0, 1]`` are rounded to
+    ``bits`` (8 or 16) bits. Returns the written paths."""
+    from PIL import Image
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    levels, dtype = (255, np.uint8) if bits == 8 else (65535, np.uint16)
+    written = []
+    for t, frame in enumerate(frames):
+        pixels = np.round(np.clip(frame, 0, 1) * levels).astype(dtype)
+        target = folder / f"frame_{t:03d}.png"
+        Image.fromarray(pixels).save(target, optimize=False, compress_level=6)
+        written.append(target)
+    if labels is not None:
+        for t, label in enumerate(labels):
+            target = folder / f"labels_{t:03d}.png"
+            Image.fromarray(np.asarray(label, dtype=np.uint8)).save(target, compress_level=6)
+            written.append(target)
+    if truth is not None:
+        target = folder / "truth.json"
+        target.write_text(json.dumps(truth, indent=1, sort_keys=True) + "\n")
+        written.append(target)
+    return written

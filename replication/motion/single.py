@@ -1,0 +1,151 @@
+"""One rotation centre end to end: the paper's accumulation (2.2), then the refinement."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+from scipy import ndimage
+
+from replication.errors import InputError
+from replication.motion import irc
+from replication.motion.derivatives import sequence_derivatives
+
+DEFAULTS = {
+    "sigma": 1.5,                 # Gaussian pre-smoothing, pixels
+    "relative_threshold": 0.3,    # gradient norm >= this x its 99th percentile
+    "omega_min": -0.05,           # the paper's sweep, rad/frame
+    "omega_max": 0.05,
+    "omega_count": 100,           # 0 excluded
+    "margin": 0.0,                # accumulator beyond the image, pixels
+    "cell": 1.0,                  # accumulator cell, pixels
+    "region_tol": 3.0,            # a pixel verifies the equation: line within this, pixels
+    "blob_sigma": 3.0,            # blob detection window, pixels
+    "blob_level": 0.3,            # fraction of verifying pixels in the window
+    "region_erode": None,         # erode the region before refining, pixels (None: 3 sigma)
+    "tukey_c": 1.0,               # refinement: normal-flow residual scale, pixels/frame
+    "rounds": 2,                  # refinement rounds (region re-detected between rounds)
+}
+
+
+def settings_from(method):
+    """:data:`DEFAULTS` updated by a config's ``method`` block (dict or None).
+
+    Raises
+    ------
+    InputError
+        For a key that is not a setting of the method.
+    """
+    method = dict(method or {})
+    unknown = sorted(set(method) - set(DEFAULTS))
+    if unknown:
+        raise InputError(f"method: unknown setting(s) {unknown}; expected some of "
+                         + ", ".join(DEFAULTS))
+    settings = dict(DEFAULTS)
+    settings.update(method)
+    return settings
+
+
+def paper_method(frames, settings):
+    """The paper's accumulation: derivatives, threshold, sweep, best peak.
+
+    Parameters
+    ----------
+    frames : (T, H, W) ndarray
+    settings : dict
+        Keys of :data:`DEFAULTS`.
+
+    Returns
+    -------
+    estimate : dict
+        ``{xi, eta, omega, peak}`` at the best peak.
+    table : dict
+        ``F(omega)``: ``omega, xi, eta, peak, votes`` arrays of shape ``(m,)``.
+    pixels : PixelDerivatives
+    grid : Grid
+    """
+    pixels = sequence_derivatives(frames, sigma=settings["sigma"],
+                                  relative_threshold=settings["relative_threshold"])
+    grid = irc.image_grid(frames.shape[1:], margin=settings["margin"], cell=settings["cell"])
+    omegas = irc.omega_sweep(settings["omega_min"], settings["omega_max"],
+                             int(settings["omega_count"]))
+    table = irc.sweep(pixels, omegas, grid)
+    return irc.paper_estimate(table), table, pixels, grid
+
+
+def erode(region, radius):
+    """``region`` (H, W) bool eroded by a disc of ``radius`` pixels.
+
+    Smoothing mixes the object with the static background within about ``3 sigma`` of
+    its edge; those pixels move partly and would bias the refinement towards no motion.
+    """
+    radius = int(round(radius))
+    if radius <= 0:
+        return region
+    rows, cols = np.mgrid[-radius: radius + 1, -radius: radius + 1]
+    return ndimage.binary_erosion(region, rows ** 2 + cols ** 2 <= radius ** 2)
+
+
+def refined_method(frames, start, pixels, settings):
+    """Refinement from the paper's estimate ``start``: blob region, warping, robust LS.
+
+    The region is eroded by ``region_erode`` pixels before use. The first round's region
+    is the blob of pixels verifying the IRC equation at ``start`` (paper Fig. 4); later
+    rounds re-detect it as the blob of pixels that follow the refined motion after warping
+    better than standing still.
+
+    Returns
+    -------
+    dict
+        ``xi, eta, omega, iterations, pixels`` and ``region`` ((H, W) bool, the last one).
+    """
+    shape = frames.shape[1:]
+    region = irc.blob_region(pixels, start["xi"], start["eta"], start["omega"], shape,
+                             tol=settings["region_tol"], blob_sigma=settings["blob_sigma"],
+                             level=settings["blob_level"])
+    current = dict(start)
+    iterations = 0
+    erosion = settings["region_erode"]
+    erosion = math.ceil(3 * settings["sigma"]) if erosion is None else erosion
+    for round_index in range(int(settings["rounds"])):
+        if round_index > 0:
+            region = irc.density_blob(current["consistent"], current["gradient"],
+                                      blob_sigma=settings["blob_sigma"],
+                                      level=settings["blob_level"])
+        current = irc.refine(frames, current["xi"], current["eta"], current["omega"],
+                             erode(region, erosion),
+                             sigma=settings["sigma"],
+                             relative_threshold=settings["relative_threshold"],
+                             tukey_c=settings["tukey_c"])
+        iterations += current["iterations"]
+    return {"xi": current["xi"], "eta": current["eta"], "omega": current["omega"],
+            "iterations": iterations, "pixels": current["pixels"], "region": region}
+
+
+def find_rotation(frames, settings):
+    """Paper estimate, refined estimate and timings for one sequence.
+
+    Returns
+    -------
+    dict
+        ``paper`` ({xi, eta, omega, peak}), ``refined`` ({xi, eta, omega, iterations,
+        pixels}), ``seconds`` ({paper, refined}), and the working arrays ``table``,
+        ``pixels``, ``grid``, ``region``.
+    """
+    start = time.perf_counter()
+    paper, table, pixels, grid = paper_method(frames, settings)
+    middle = time.perf_counter()
+    refined = refined_method(frames, paper, pixels, settings)
+    end = time.perf_counter()
+    region = refined.pop("region")
+    return {"paper": paper, "refined": refined,
+            "seconds": {"paper": middle - start, "refined": end - middle},
+            "table": table, "pixels": pixels, "grid": grid, "region": region}
+
+
+def errors(estimate, truth):
+    """Centre error (pixels) and omega error (% of the true omega)."""
+    centre = float(np.hypot(estimate["xi"] - truth["xi"], estimate["eta"] - truth["eta"]))
+    omega = float(100.0 * (estimate["omega"] - truth["omega"]) / abs(truth["omega"]))
+    return {"centre_px": centre, "omega_pct": omega}

@@ -1,0 +1,138 @@
+"""The sequence reader: formats of spec/data-formats.md, and one test per refused input."""
+
+import json
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from replication.errors import InputError
+from replication.motion.io import read_sequence, write_sequence_folder, write_sequence_npz
+
+
+def frames_like(t=2, shape=(16, 16), seed=0):
+    return np.random.default_rng(seed).random((t, *shape))
+
+
+def write_png(path, array):
+    Image.fromarray(np.asarray(array)).save(path)
+
+
+def test_npz_round_trip(tmp_path):
+    frames = frames_like(3)
+    truth = {"objects": [{"label": 1, "xi": 1.0, "eta": 2.0, "omega": 0.01}]}
+    labels = np.zeros((3, 16, 16), dtype=np.uint8)
+    write_sequence_npz(tmp_path / "s.npz", frames, labels=labels, truth=truth)
+    sequence = read_sequence(tmp_path / "s.npz")
+    np.testing.assert_allclose(sequence.frames, frames, atol=1e-7)
+    assert sequence.truth == truth and sequence.labels.shape == (3, 16, 16)
+
+
+def test_npz_writer_is_deterministic(tmp_path):
+    write_sequence_npz(tmp_path / "a.npz", frames_like())
+    write_sequence_npz(tmp_path / "b.npz", frames_like())
+    assert (tmp_path / "a.npz").read_bytes() == (tmp_path / "b.npz").read_bytes()
+
+
+@pytest.mark.parametrize("bits", [8, 16])
+def test_folder_round_trip(tmp_path, bits):
+    frames = frames_like()
+    write_sequence_folder(tmp_path, frames, labels=np.ones((2, 16, 16)), bits=bits,
+                          truth={"objects": []})
+    sequence = read_sequence(tmp_path)
+    np.testing.assert_allclose(sequence.frames, frames, atol=0.51 / (2 ** bits - 1))
+    assert sequence.labels.shape == (2, 16, 16)
+
+
+def test_colour_frames_become_luminance(tmp_path):
+    rgb = (np.random.default_rng(1).random((2, 16, 16, 3)) * 255).astype(np.uint8)
+    for t in range(2):
+        write_png(tmp_path / f"f{t}.png", rgb[t])
+    sequence = read_sequence(tmp_path)
+    expected = rgb[0] @ np.array([0.2125, 0.7154, 0.0721]) / 255
+    np.testing.assert_allclose(sequence.frames[0], expected, atol=1e-12)
+
+
+def test_tiff_frames(tmp_path):
+    import tifffile
+
+    frames = (frames_like() * 65535).astype(np.uint16)
+    for t in range(2):
+        tifffile.imwrite(tmp_path / f"f{t}.tif", frames[t])
+    np.testing.assert_allclose(read_sequence(tmp_path).frames, frames / 65535)
+
+
+def test_refuses_missing_path(tmp_path):
+    with pytest.raises(InputError, match="no such file or folder"):
+        read_sequence(tmp_path / "absent.npz")
+
+
+def test_refuses_one_frame(tmp_path):
+    np.savez(tmp_path / "one.npz", frames=frames_like(1))
+    with pytest.raises(InputError,
+                       match=r"one.npz: frames: found T = 1 frame\(s\); expected T >= 2"):
+        read_sequence(tmp_path / "one.npz")
+
+
+def test_refuses_one_frame_in_a_folder(tmp_path):
+    write_png(tmp_path / "f0.png", (frames_like(1)[0] * 255).astype(np.uint8))
+    with pytest.raises(InputError, match="T = 1 frame"):
+        read_sequence(tmp_path)
+
+
+def test_refuses_mismatched_shapes(tmp_path):
+    write_png(tmp_path / "f0.png", (frames_like(1)[0] * 255).astype(np.uint8))
+    write_png(tmp_path / "f1.png", (frames_like(1, (16, 20))[0] * 255).astype(np.uint8))
+    with pytest.raises(InputError, match=r"f1.png: shape: found 16 x 20 pixels; expected the "
+                                         r"shape of f0.png, 16 x 16"):
+        read_sequence(tmp_path)
+
+
+def test_refuses_constant_frame(tmp_path):
+    frames = frames_like()
+    frames[1] = 0.25
+    np.savez(tmp_path / "c.npz", frames=frames)
+    with pytest.raises(InputError, match="frame 1: found a constant image"):
+        read_sequence(tmp_path / "c.npz")
+
+
+def test_refuses_nan(tmp_path):
+    frames = frames_like()
+    frames[0, 3, 4] = np.nan
+    np.savez(tmp_path / "n.npz", frames=frames)
+    with pytest.raises(InputError, match="frame 0: found 1 NaN or inf value"):
+        read_sequence(tmp_path / "n.npz")
+
+
+def test_refuses_missing_frames_key(tmp_path):
+    np.savez(tmp_path / "k.npz", images=frames_like())
+    with pytest.raises(InputError, match="frames: found no such key"):
+        read_sequence(tmp_path / "k.npz")
+
+
+def test_refuses_wrong_dimensions(tmp_path):
+    np.savez(tmp_path / "d.npz", frames=np.zeros((2, 16)))
+    with pytest.raises(InputError, match=r"frames: found shape \(2, 16\); expected \(T, H, W\)"):
+        read_sequence(tmp_path / "d.npz")
+
+
+def test_refuses_unsupported_file(tmp_path):
+    (tmp_path / "movie.avi").write_bytes(b"x")
+    with pytest.raises(InputError, match="unsupported file type '.avi'"):
+        read_sequence(tmp_path / "movie.avi")
+
+
+def test_refuses_bad_truth(tmp_path):
+    np.savez(tmp_path / "t.npz", frames=frames_like(), truth=np.array("{not json"))
+    with pytest.raises(InputError, match="truth: found invalid JSON"):
+        read_sequence(tmp_path / "t.npz")
+    np.savez(tmp_path / "u.npz", frames=frames_like(),
+             truth=np.array(json.dumps({"objects": [{"xi": 1}]})))
+    with pytest.raises(InputError, match="an object without eta, omega"):
+        read_sequence(tmp_path / "u.npz")
+
+
+def test_refuses_labels_of_another_shape(tmp_path):
+    np.savez(tmp_path / "l.npz", frames=frames_like(), labels=np.zeros((2, 8, 8), np.uint8))
+    with pytest.raises(InputError, match=r"labels: found shape \(2, 8, 8\)"):
+        read_sequence(tmp_path / "l.npz")

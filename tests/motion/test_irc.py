@@ -1,0 +1,103 @@
+"""The IRC equation, the accumulation and the refinement against ground truth."""
+
+import numpy as np
+
+from replication.motion import baselines, irc, single
+from replication.motion.derivatives import PixelDerivatives, pair_derivatives
+
+
+def exact_pixels(xi, eta, omega, n=400, seed=0):
+    """Pixels whose derivatives verify the IRC equation exactly for (xi, eta, omega)."""
+    rng = np.random.default_rng(seed)
+    x = rng.integers(5, 60, n).astype(float)
+    y = rng.integers(5, 60, n).astype(float)
+    angle = rng.uniform(0, 2 * np.pi, n)
+    gx, gy = np.cos(angle), np.sin(angle)
+    u, v = -omega * (y - eta), omega * (x - xi)
+    gt = -(gx * u + gy * v)
+    return PixelDerivatives(x, y, gx, gy, gt, np.zeros(n, dtype=np.int64))
+
+
+def test_exact_lines_meet_at_the_centre():
+    pixels = exact_pixels(31.0, 22.0, 0.02)
+    grid = irc.image_grid((64, 64))
+    acc = irc.accumulate(pixels, 0.02, grid)
+    j, i = np.unravel_index(np.argmax(acc), acc.shape)
+    assert grid.centre(j, i) == (31.0, 22.0)
+    assert acc[j, i] == len(pixels)          # every line passes through the centre's cell
+    np.testing.assert_allclose(irc.line_distance(pixels, 31.0, 22.0, 0.02), 0, atol=1e-9)
+
+
+def test_sweep_peaks_at_the_true_omega_for_exact_lines():
+    pixels = exact_pixels(40.0, 18.0, -0.03)
+    table = irc.sweep(pixels, irc.omega_sweep(-0.05, 0.05, 100), irc.image_grid((64, 64)))
+    best = irc.paper_estimate(table)
+    assert (best["xi"], best["eta"]) == (40.0, 18.0)
+    assert abs(best["omega"] + 0.03) < 1e-12
+    assert best["peak"] == len(pixels)
+
+
+def test_sweep_excludes_zero():
+    omegas = irc.omega_sweep(-0.05, 0.05, 100)
+    assert omegas.size == 100 and np.all(omegas != 0)
+    np.testing.assert_allclose(np.diff(omegas)[[0, -1]], 0.001)
+
+
+def test_rigid_matrix_round_trip():
+    matrix = irc.rigid_matrix(69.0, 140.0, -0.023)
+    np.testing.assert_allclose(irc.matrix_to_irc(matrix), (69.0, 140.0, -0.023), atol=1e-9)
+    np.testing.assert_allclose(matrix @ [69.0, 140.0, 1.0], [69.0, 140.0, 1.0], atol=1e-12)
+
+
+def test_derivative_conventions():
+    rows, cols = np.mgrid[0:32, 0:32].astype(float)
+    frame0 = 0.5 * cols + 0.25 * rows
+    frame1 = frame0 - 0.5 * 2.0       # the ramp moved 2 px to the right
+    gx, gy, gt, valid = pair_derivatives(frame0, frame1, sigma=0.0)
+    np.testing.assert_allclose(gx[valid], 0.5)
+    np.testing.assert_allclose(gy[valid], 0.25)
+    np.testing.assert_allclose(gt[valid], -1.0)
+    # optical flow equation: Ix u + It = 0 gives u = 2 px/frame
+    np.testing.assert_allclose(-gt[valid] / gx[valid], 2.0)
+
+
+def test_small_sequence_paper_and_refined(small_sequence, fast_settings):
+    frames, _, truth = small_sequence
+    truth = truth["objects"][0]
+    found = single.find_rotation(frames, fast_settings)
+    paper = single.errors(found["paper"], truth)
+    refined = single.errors(found["refined"], truth)
+    assert paper["centre_px"] <= 2.0 and abs(paper["omega_pct"]) <= 15.0
+    assert refined["centre_px"] <= 1.0 and abs(refined["omega_pct"]) <= 3.0
+
+
+def test_zero_motion_gives_no_rotation(small_sequence, fast_settings):
+    frames = np.stack([small_sequence[0][0], small_sequence[0][0]])
+    _, table, _, _ = single.paper_method(frames, fast_settings)
+    assert np.ptp(table["peak"]) == 0            # F(omega) is flat: no omega is preferred
+    assert baselines.direct_least_squares(frames)["omega"] == 0.0
+    flow = baselines.rigid_fit(np.zeros((32, 32)), np.zeros((32, 32)),
+                               np.ones((32, 32), dtype=bool))
+    assert flow["omega"] == 0.0
+
+
+def test_rigid_fit_recovers_a_rotation():
+    rows, cols = np.mgrid[0:64, 0:64].astype(float)
+    matrix = irc.rigid_matrix(20.0, 30.0, 0.05)
+    u = matrix[0, 0] * cols + matrix[0, 1] * rows + matrix[0, 2] - cols
+    v = matrix[1, 0] * cols + matrix[1, 1] * rows + matrix[1, 2] - rows
+    fit = baselines.rigid_fit(u, v, np.ones_like(u, dtype=bool))
+    np.testing.assert_allclose([fit["xi"], fit["eta"], fit["omega"]], [20, 30, 0.05], atol=1e-9)
+
+
+def test_find_rotation_is_deterministic(small_sequence, fast_settings):
+    first = single.find_rotation(small_sequence[0], fast_settings)
+    second = single.find_rotation(small_sequence[0], fast_settings)
+    assert first["paper"] == second["paper"]
+    assert first["refined"] == second["refined"]
+
+
+def test_cmaes_same_seed_same_result(small_sequence):
+    a = baselines.cmaes_rotation(small_sequence[0], seed=4, max_evals=200)
+    b = baselines.cmaes_rotation(small_sequence[0], seed=4, max_evals=200)
+    assert a == b

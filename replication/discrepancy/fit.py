@@ -28,6 +28,7 @@ LAG_BEFORE = 2
 LAG_AFTER = 3
 BIG_TAU = 1e9
 PLAUSIBLE_REST = (0.6, 1.5)
+MASK_MARGIN = 0.02  # relative: tau may be off by a few percent while the mask is built
 
 
 class Data(NamedTuple):
@@ -211,7 +212,7 @@ def one_step_predictions(data, base, terms, frames):
     return x_hat
 
 
-def constraint_mask(data, base, terms, frames, *, margin=2e-3):
+def constraint_mask(data, base, terms, frames, *, margin=MASK_MARGIN):
     """Particle-frames the deformation constraint (probably) leaves alone, (T, P) bool.
 
     A free particle is excluded at frame ``t`` if a spring touching it is longer than
@@ -236,11 +237,12 @@ def constraint_mask(data, base, terms, frames, *, margin=2e-3):
     return mask
 
 
-def search_tau(data, base, terms, frames, *, grid=None, max_frames=80):
+def search_tau(data, base, terms, frames, *, grid=None, max_frames=50):
     """The critical elongation rate minimising the one-step cost over ``frames``.
 
-    A coarse log grid then a fine one around the best value, each evaluated as one
-    population by the compiled kernel; exact ties go to the smallest ``tau``.
+    A log grid around the current value (or a wide one), a fine grid around its best
+    value, each evaluated as one population by the compiled kernel, then a bounded scalar
+    search; exact ties go to the smallest ``tau``.
     """
     frames = np.asarray(frames)
     if len(frames) > max_frames:
@@ -249,7 +251,12 @@ def search_tau(data, base, terms, frames, *, grid=None, max_frames=80):
     q = fx.Frames(data.x[frames], data.v[frames], data.ops, data.mass, base.rest, base.k,
                   data.scene.damping)
     extra = fx.extra_force(terms, q)[None]
-    coarse = np.geomspace(3e-3, 3.0, 64) if grid is None else np.asarray(grid)
+    if grid is None:
+        current = float(base.tau[0])
+        coarse = (np.geomspace(current / 1.5, current * 1.5, 21) if current < BIG_TAU
+                  else np.geomspace(3e-3, 3.0, 64))
+    else:
+        coarse = np.asarray(grid)
 
     def evaluate(taus):
         pop = len(taus)
@@ -307,6 +314,7 @@ def fit_model(data, frames, effect_names=(), *, model="5", base=None, rounds=2, 
     if base is None:
         base = initial_base(data, frames, model=model, block=block, effect_names=effect_names)
     terms = []
+    best = None
     for _ in range(rounds):
         mask = constraint_mask(data, base, terms, frames)
         columns, slices = design(data, base, effect_names, model)
@@ -317,17 +325,18 @@ def fit_model(data, frames, effect_names=(), *, model="5", base=None, rounds=2, 
         base = base_from_theta(theta[:nb], model, base.tau)
         tau = search_tau(data, base, terms, frames)
         base = BaseModel(base.rest, base.k, np.full(6, tau))
-    return Fit(base, terms, theta, cov, mask)
+        score = _structure_score(data, base, terms, frames)
+        if best is None or score < best[0]:
+            best = (score, Fit(base, terms, theta, cov, mask))
+    return best[1]
 
 
-def _observed_mask(data, rest, tau, frames, *, margin=2e-3):
+def _observed_mask(data, lengths, rest, tau, *, margin=MASK_MARGIN):
     """Free particle-frames with no touching spring beyond ``(1 + tau)(1 - margin) l`` in the
-    recorded frame ``t+1``, (F, P) bool."""
+    recorded frames ``t+1`` whose spring lengths are ``lengths`` (F, S); (F, P) bool."""
     a, b, kind = data.ops.a, data.ops.b, data.ops.kind
-    positions = data.x[frames + 1]
-    length = np.linalg.norm(positions[:, b] - positions[:, a], axis=2)
-    over = length > ((1.0 + tau) * rest[kind] * (1.0 - margin))[None, :]
-    hit = np.zeros((len(frames), data.x.shape[1]), dtype=bool)
+    over = lengths > ((1.0 + tau) * rest[kind] * (1.0 - margin))[None, :]
+    hit = np.zeros((lengths.shape[0], data.x.shape[1]), dtype=bool)
     rows, springs_over = np.nonzero(over)
     hit[rows, a[springs_over]] = True
     hit[rows, b[springs_over]] = True
@@ -350,13 +359,24 @@ def _plausible(rest, typical, *, low=PLAUSIBLE_REST[0], high=PLAUSIBLE_REST[1]):
     return bool(np.all((ratio >= low) & (ratio <= high)))
 
 
-def initial_base(data, frames, *, model="5", block=5, taus=None, inner=3, max_frames=40,
-                 effect_names=()):
+def _structure_score(data, base, terms, frames):
+    """Residual structure ``Q`` of a candidate start (1 = noise only): unlike the one-step
+    cost it does not reward the wrong valley, whose errors are smooth in time."""
+    from replication.discrepancy.residuals import structure
+
+    frames = np.asarray(frames)
+    r = data.x[frames + 1] - one_step_predictions(data, base, terms, frames)
+    r[:, ~data.free] = 0.0
+    return structure(r, frames, data.free, data.ops.n)["Q"]
+
+
+def initial_base(data, frames, *, model="5", block=5, taus=None, inner=3, max_frames=30,
+                 max_score_frames=60, effect_names=()):
     """Robust start: profile over ``tau``.
 
-    For each ``tau`` of a coarse grid, alternate a base-only IV fit and the mask of
-    particle-frames whose recorded springs stay below ``(1 + tau) l``; score the result by
-    the one-step cost (compiled kernel) and keep the best.
+    For each ``tau`` of a coarse grid, alternate an IV fit and the mask of particle-frames
+    whose recorded springs stay below ``(1 + tau) l``, refine ``tau`` on the one-step cost
+    (compiled kernel), and keep the start whose residual structure ``Q`` is smallest.
     """
     taus = np.geomspace(0.02, 1.0, 13) if taus is None else np.asarray(taus)
     ratio = np.sqrt(taus[1] / taus[0]) if len(taus) > 1 else 1.0
@@ -369,6 +389,9 @@ def initial_base(data, frames, *, model="5", block=5, taus=None, inner=3, max_fr
     normal = np.einsum("fpci,fpcj->fpij", z, columns[frames])
     right = np.einsum("fpci,fpc->fpi", z, data.target[frames])
     rest0 = typical
+    following = data.x[frames + 1]
+    lengths = np.linalg.norm(following[:, data.ops.b] - following[:, data.ops.a], axis=2)
+    score_frames = frames[:max_score_frames]
     cost_frames = frames if len(frames) <= max_frames else \
         frames[np.linspace(0, len(frames) - 1, max_frames).round().astype(int)]
     cost = ClothCost(data.trajectory, cost_frames, h=data.h)
@@ -377,7 +400,7 @@ def initial_base(data, frames, *, model="5", block=5, taus=None, inner=3, max_fr
         rest = rest0
         base, terms = None, []
         for _ in range(inner):
-            keep = _observed_mask(data, rest, tau, frames).astype(float)
+            keep = _observed_mask(data, lengths, rest, tau).astype(float)
             lhs = np.einsum("fp,fpij->ij", keep, normal)
             if np.linalg.matrix_rank(lhs) < m:
                 break
@@ -390,7 +413,7 @@ def initial_base(data, frames, *, model="5", block=5, taus=None, inner=3, max_fr
             rest = base.rest
         if base is None or not _plausible(base.rest, typical):
             continue
-        local = np.geomspace(tau / ratio, tau * ratio ** 3, 25)
+        local = np.geomspace(tau / ratio, tau * ratio ** 3, 15)
         params = ClothParams(np.repeat(base.rest[None], local.size, 0),
                              np.repeat(base.k[None], local.size, 0),
                              np.repeat(local[:, None], 6, 1))
@@ -398,8 +421,10 @@ def initial_base(data, frames, *, model="5", block=5, taus=None, inner=3, max_fr
                       base.rest, base.k, data.scene.damping)
         values = cost(params, fx.extra_force(terms, q)[None])
         pick = int(np.argmin(values))
-        if best is None or values[pick] < best[0]:
-            best = (float(values[pick]), BaseModel(base.rest, base.k, np.full(6, local[pick])))
+        candidate = BaseModel(base.rest, base.k, np.full(6, local[pick]))
+        score = _structure_score(data, candidate, terms, score_frames)
+        if best is None or score < best[0]:
+            best = (score, candidate)
     if best is None:
         raise ValueError("initial_base: no tau of the grid gave positive stiffness and rest "
                          "lengths; the data does not look like the cloth model")

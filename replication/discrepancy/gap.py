@@ -8,7 +8,8 @@ from replication.cloth.model import step
 from replication.discrepancy import effects as fx
 from replication.discrepancy.residuals import residuals
 
-SMOOTH_FRAMES = 5
+SMOOTH_HALF = 3
+STARTS = ("recorded", "centred")
 
 
 def split_frames(n_frames, *, block=25, every=4):
@@ -28,28 +29,37 @@ def split_frames(n_frames, *, block=25, every=4):
     return frames[~near[frames]], held
 
 
-def start_velocity(x, t, dt):
-    """Velocity at frame ``t`` from a quadratic least-squares fit to the ``SMOOTH_FRAMES``
-    frames ending at ``t`` (less noisy than the last difference), (P, 3)."""
-    lags = np.arange(-SMOOTH_FRAMES + 1, 1) * dt
-    basis = np.stack([np.ones_like(lags), lags, lags ** 2], axis=1)
-    weights = np.linalg.pinv(basis)[1]
-    return np.einsum("k,kpc->pc", weights, x[t - SMOOTH_FRAMES + 1:t + 1])
+def start_state(x, t, dt, how):
+    """Initial state of a rollout at frame ``t``: ``(x0, v0)`` each (P, 3).
+
+    ``how="recorded"``: the recorded position and last difference (the contract's state,
+    exact without noise); ``how="centred"``: value and slope of a quadratic least-squares
+    fit to frames ``t-3..t+3`` (less noisy; frames after ``t`` are not scored).
+    """
+    if how == "recorded":
+        return x[t].copy(), (x[t] - x[t - 1]) / dt
+    lags = np.arange(-SMOOTH_HALF, SMOOTH_HALF + 1) * dt
+    weights = np.linalg.pinv(np.stack([np.ones_like(lags), lags, lags ** 2], axis=1))
+    window = x[t - SMOOTH_HALF:t + SMOOTH_HALF + 1]
+    return np.einsum("k,kpc->pc", weights[0], window), np.einsum("k,kpc->pc", weights[1], window)
 
 
-def rollout_error(data, fit, held_out):
+def rollout_error(data, fit, held_out, *, start="recorded"):
     """RMS position error (units of ``h``) of rollouts over the held-out blocks.
 
-    Each block is rolled out from its first recorded frame (velocity from
-    :func:`start_velocity`) for the block's length, the effect terms recomputed from the
-    state at every step; the error is over free particles and all predicted frames.
+    Each block is rolled out from a state estimated at its first frame (:func:`start_state`)
+    for the block's length, the effect terms recomputed from the state at every step; the
+    error is over free particles and the predicted frames after ``SMOOTH_HALF``.
     """
-    starts = [chunk[0] for chunk in held_out if chunk[0] >= SMOOTH_FRAMES]
+    starts = [int(chunk[0]) for chunk in held_out
+              if SMOOTH_HALF + 1 <= chunk[0] <= data.n_frames - len(chunk) - 1]
     if not starts:
         return float("nan")
     horizon = min(len(chunk) for chunk in held_out)
-    x = data.x[starts].copy()
-    v = np.stack([start_velocity(data.x, t, data.scene.dt) for t in starts])
+    states = [start_state(data.x, t, data.scene.dt, start) for t in starts]
+    x = np.stack([s[0] for s in states])
+    v = np.stack([s[1] for s in states])
+    x[:, ~data.free] = data.x[starts][:, ~data.free]
     v[:, ~data.free] = 0.0
     params = fit.base.params(len(starts))
     total, count = 0.0, 0
@@ -59,6 +69,8 @@ def rollout_error(data, fit, held_out):
         x, v = step(x, v, params, data.scene, fx.extra_force(fit.terms, q))
         if not np.all(np.isfinite(x)):
             return float("inf")
+        if lag <= SMOOTH_HALF:
+            continue
         diff = x[:, data.free] - data.x[np.array(starts) + lag][:, data.free]
         total += float(np.sum(diff ** 2))
         count += diff[..., 0].size

@@ -6,7 +6,7 @@ import numpy as np
 
 from replication.discrepancy import effects as fx
 from replication.discrepancy.fit import Fit, base_from_theta, fit_model, usable_frames
-from replication.discrepancy.gap import one_step_error, rollout_error, split_frames
+from replication.discrepancy.gap import STARTS, one_step_error, rollout_error, split_frames
 from replication.discrepancy.naming import score_candidates
 from replication.discrepancy.residuals import residuals, structure, where
 from replication.errors import InputError
@@ -86,8 +86,10 @@ def analyse(trajectory, config=None, *, rng=None):
     q_before = located["Q"]
     scores = score_candidates(data, base_fit, train, model=model, alpha=settings["alpha"],
                               n_subsamples=settings["n_subsamples"], rng=rng)
-    gap_before = {"rollout": rollout_error(data, base_fit, held),
-                  "one_step": one_step_error(data, base_fit, held)}
+    before = {how: rollout_error(data, base_fit, held, start=how) for how in STARTS}
+    start = min(STARTS, key=lambda how: before[how])
+    gap_before = {"rollout": before[start], "one_step": one_step_error(data, base_fit, held),
+                  "rollout_start": start}
     _, r0 = _structure_of(data, base_fit, frames, settings)
     quick_q = {}
     for name, s in scores.items():
@@ -96,12 +98,14 @@ def analyse(trajectory, config=None, *, rng=None):
             trial = Fit(quick, [(name, np.asarray(s["theta"]))], None, None, base_fit.mask)
             quick_q[name] = _structure_of(data, trial, frames, settings)[0]["Q"]
             s["Q_quick"] = quick_q[name]
-    ranked = sorted(quick_q, key=lambda name: quick_q[name])
+    ranked = sorted(quick_q, key=lambda name: quick_q[name])[:settings["max_candidates"]]
+    strongest = sorted(quick_q, key=lambda name: scores[name]["log10_p"])[:1]
+    ranked += [name for name in strongest if name not in ranked]
     named, final_fit, tried = [], base_fit, []
-    for name in ranked[:settings["max_candidates"]]:
+    for name in ranked:
         trial = fit_model(data, train, [name], model=model)
         after, r1 = _structure_of(data, trial, frames, settings)
-        gap_trial = {"rollout": rollout_error(data, trial, held),
+        gap_trial = {"rollout": rollout_error(data, trial, held, start=start),
                      "one_step": one_step_error(data, trial, held)}
         excess = max(q_before - 1.0, 1e-12)
         explained = (q_before - after["Q"]) / excess
@@ -121,18 +125,18 @@ def analyse(trajectory, config=None, *, rng=None):
                      and (after["Q"] <= settings["q_threshold"]
                           or explained >= settings["explained_min"]))
         tried.append({"name": name, "confirmed": bool(confirmed), "evidence": evidence})
-        if confirmed:
+        if confirmed and (not named or after["Q"] < named[0]["evidence"]["Q_after"]):
             theta = trial.terms[0][1]
             base_dict = {"k": trial.base.k.tolist()}
-            named.append({"name": name,
-                          "parameters": {"coefficients": dict(zip(fx.get_effect(name).coefficients,
-                                                                  np.asarray(theta).tolist())),
-                                         **fx.get_effect(name).physical(theta, base_dict)},
-                          "evidence": evidence})
+            effect = fx.get_effect(name)
+            named = [{"name": name,
+                      "parameters": {"coefficients": dict(zip(effect.coefficients,
+                                                              np.asarray(theta).tolist())),
+                                     **effect.physical(theta, base_dict)},
+                      "evidence": evidence}]
             final_fit = trial
-            break
     gap_after = gap_before if final_fit is base_fit else {
-        "rollout": rollout_error(data, final_fit, held),
+        "rollout": rollout_error(data, final_fit, held, start=start),
         "one_step": one_step_error(data, final_fit, held)}
     q_final = (_structure_of(data, final_fit, frames, settings)[0]["Q"]
                if final_fit is not base_fit else q_before)

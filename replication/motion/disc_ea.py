@@ -64,6 +64,7 @@ DEFAULTS = {
     "relative_threshold": 0.15,
     "motion_ratio": 0.7,      # rotating disc: rotation residual < this x static residual
     "motion_min": 0.1,        # ... and static normal flow above this, pixels/frame
+    "project_fresh": False,   # true: fresh individuals are projected once (not in the paper)
     "reject_static": False,   # true: motionless discs get the worst cost (not in the paper)
 }
 
@@ -423,6 +424,9 @@ class DiscEA:
         projected = project_centres(kept, self.data, self.rng, damping=s["damping"],
                                     cap=s["cap"])
         fresh = self.random_individuals(self.n - 4 * self.n_keep)
+        if s["project_fresh"]:
+            fresh = project_centres(fresh, self.data, self.rng, damping=s["damping"],
+                                    cap=s["cap"])
         children = self._repair(np.concatenate([moved, turned, projected, fresh]))
         child_costs = disc_cost(children, self.data, s)
         self.population = np.concatenate([kept, children])

@@ -208,7 +208,7 @@ def segment_sequence(config, out):
     return result
 
 
-METHODS = ("paper", "nichega", "flow")
+METHODS = ("pipeline", "faithful", "nichega", "flow")
 
 
 def _study_sequences(config):
@@ -230,11 +230,17 @@ def _study_sequences(config):
 
 
 def _run_method(method, frames, settings, flow_settings, rng):
+    """Objects found by one method: ``pipeline`` (the configured settings), ``faithful``
+    (the same with every addition to the paper switched off), ``nichega`` (pymoo's
+    niching GA instead of the paper's EA) or ``flow`` (TV-L1 + sequential RANSAC)."""
     from replication.motion import segment_baselines, segmentation
 
     if method == "flow":
         return segment_baselines.flow_ransac_segment(frames, flow_settings, rng)
-    chosen = dict(settings, search=method)
+    chosen = {**settings, "search": "nichega" if method == "nichega" else "paper"}
+    if method == "faithful":
+        chosen = {**chosen, **{group: {**settings[group], **values}
+                               for group, values in segmentation.FAITHFUL.items()}}
     return segmentation.segment(frames, chosen, rng)["objects"]
 
 

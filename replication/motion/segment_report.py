@@ -70,7 +70,7 @@ def study_section(result):
             f"{fmt(s['omega_pct_median'], 3)} | {s['iou_median']:.2f} | "
             f"{s['false_regions_per_run']:.2f} | {fmt(s['static_false_regions_per_run'], 3)} | "
             f"{s['seconds_median']:.1f} |")
-        if s["method"] == "paper":
+        if s["method"] == "pipeline":
             met = s["objects_at_90pct"] == s["objects"]
             rows.append(SummaryRow(
                 "2.3: EA + snakes + restricted accumulation find every rotating object",
@@ -81,9 +81,9 @@ def study_section(result):
                 f"{goals['centre_px_at_most']:g} px, IoU >= {goals['iou_at_least']:g}",
                 "replicated" if met else ("partly" if s["found_fraction"] > 0 else
                                           "not replicated")))
-    per = ["", "Per object, fraction of runs found (paper EA):", ""]
+    per = ["", "Per object, fraction of runs found (pipeline):", ""]
     for s in result["summary"]:
-        if s["method"] == "paper":
+        if s["method"] == "pipeline":
             per += [f"- {key}: {rate:.2f}" for key, rate in s["per_object_rate"].items()]
     text = ("Seeds per method: " + ", ".join(f"{m} {n}" for m, n in result["seeds"].items())
             + "; a run is found for a true object when its best-overlapping region has IoU >= "

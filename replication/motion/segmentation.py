@@ -4,6 +4,9 @@
    20% best are kept, and those better explained by no motion than by their rotation are
    dropped (the static background).
 2. Each disc grows into a region by a radial snake (2.3.3, :mod:`replication.motion.snakes`).
+   With ``snake.rounds = 2`` (not in the paper, whose order is ``rounds = 1``) the snake
+   is run a second time from the same disc with the rotation refined by step 3, then step 3
+   again: an EA disc's rotation is often only roughly right, which stops its snake early.
 3. Each region's rotation is re-estimated by the accumulation of 2.2 (``irc.sweep``) with
    votes from the region's pixels only, over ``omega`` values around the disc's ``omega``
    (2.3.4); regions whose refined rotations share a centre (and speed) are one object,
@@ -21,8 +24,9 @@ from replication.errors import InputError
 from replication.motion import disc_ea, irc, snakes
 from replication.motion.derivatives import PixelDerivatives
 
-SNAKE_DEFAULTS = {"tolerance": 0.3, "ambiguous": 0.15, "n_sectors": 64, "rho_max": 120,
-                  "kappa": 0.05, "steps": [8, 4, 2, 1], "iterations": 20}
+SNAKE_DEFAULTS = {"tolerance": 0.3, "ambiguous": 0.15, "empty_cost": 0.2, "n_sectors": 64,
+                  "rho_max": 120, "kappa": 0.05, "steps": [8, 4, 2, 1], "iterations": 20,
+                  "deflate": False, "rounds": 1}
 ACCUMULATION_DEFAULTS = {
     "omega_window": 0.5,      # explore omega_i (1 -/+ this), and at least +/- omega_step
     "omega_step": 0.005,
@@ -32,6 +36,9 @@ ACCUMULATION_DEFAULTS = {
     "min_pixels": 50,         # regions with fewer voting pixels are dropped
 }
 MERGE_DEFAULTS = {"centre_px": 8.0, "omega_rel": 0.25, "min_area": 150}
+# the additions to the paper that the study's "pipeline" uses; "faithful" switches them off
+FAITHFUL = {"ea": {"project_fresh": False, "reject_static": False},
+            "snake": {"deflate": False, "rounds": 1}}
 GROUPS = {"ea": disc_ea.DEFAULTS, "snake": SNAKE_DEFAULTS,
           "accumulation": ACCUMULATION_DEFAULTS, "merge": MERGE_DEFAULTS}
 
@@ -207,12 +214,19 @@ def segment(frames, settings, rng):
     clock.append(time.perf_counter())
     snake = dict(settings["snake"])
     snake["steps"] = tuple(int(s) for s in snake["steps"])
+    rounds = int(snake.pop("rounds"))
     regions = [snakes.radial_snake(data, disc, **snake) for disc in discs[rotating]]
     clock.append(time.perf_counter())
-    for region, disc in zip(regions, discs[rotating]):
-        region["estimate"] = restricted_accumulation(pixels, region["mask"], disc[5],
-                                                     settings["accumulation"],
-                                                     margin=ea["margin"])
+    for k, disc in enumerate(discs[rotating]):
+        for round_index in range(rounds):
+            if round_index > 0 and regions[k]["estimate"] is not None:
+                # not in the paper: the snake again with the refined rotation
+                better = regions[k]["estimate"]
+                regions[k] = snakes.radial_snake(
+                    data, [*disc[:3], better["xi"], better["eta"], better["omega"]], **snake)
+            regions[k]["estimate"] = restricted_accumulation(
+                pixels, regions[k]["mask"], disc[5], settings["accumulation"],
+                margin=ea["margin"])
     good = [i for i, region in enumerate(regions) if region["estimate"] is not None]
     objects = []
     for group in merge_groups([regions[i]["estimate"] for i in good], settings["merge"]):

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 
-def support(data, xi, eta, omega, *, tolerance=0.3, ambiguous=0.15):
+def support(data, xi, eta, omega, *, tolerance=0.3, ambiguous=0.15, empty_cost=0.2):
     """Per-pixel evidence ``s(p)`` for the rotation ``(xi, eta, omega)``, shape ``(H, W)``.
 
     Normal-flow residuals (pixels/frame) of each pixel with a sufficient gradient, summed
@@ -29,7 +29,9 @@ def support(data, xi, eta, omega, *, tolerance=0.3, ambiguous=0.15):
 
     - +1 where ``e_rot < tolerance`` and ``e_rot < e_0 / 2`` (follows the rotation);
     - 0 where ``e_rot < tolerance`` and ``e_0 < ambiguous`` (too slow to tell, e.g. near
-      the rotation centre), and where the gradient is too weak;
+      the rotation centre);
+    - ``-empty_cost`` where the gradient is too weak to tell anything (so regions do not
+      spread over flat areas, the role of the paper's over-normalisation in 2.3.2);
     - -1 elsewhere (contradicts the rotation).
 
     Parameters
@@ -50,7 +52,7 @@ def support(data, xi, eta, omega, *, tolerance=0.3, ambiguous=0.15):
         follows = (e_rot < tolerance) & (e_rot < 0.5 * e_0)
         unclear = (e_rot < tolerance) & (e_0 < ambiguous) & ~follows
         score += np.where(data.used[p], np.where(follows, 1.0, np.where(unclear, 0.0, -1.0)),
-                          0.0)
+                          -empty_cost)
     return score / n_pairs
 
 
@@ -89,7 +91,8 @@ def stiffness_energy(rho, kappa):
     return kappa * float(np.sum((np.roll(rho, -1) - rho) ** 2))
 
 
-def inflate(cumulative, rho0, *, kappa=0.05, steps=(8, 4, 2, 1), iterations=20):
+def inflate(cumulative, rho0, *, kappa=0.05, steps=(8, 4, 2, 1), iterations=20,
+            deflate=False):
     """The paper's snake: inflate sectors while the energy decreases.
 
     Parameters
@@ -104,6 +107,9 @@ def inflate(cumulative, rho0, *, kappa=0.05, steps=(8, 4, 2, 1), iterations=20):
         Pushes tried for each sector, pixels.
     iterations : int
         The paper: stable after 5 to 20.
+    deflate : bool
+        Also try pulling sectors inwards by the same steps (not in the paper, which only
+        inflates); lets a region drop the part of its starting disc that lies outside.
 
     Returns
     -------
@@ -112,6 +118,7 @@ def inflate(cumulative, rho0, *, kappa=0.05, steps=(8, 4, 2, 1), iterations=20):
         The energy after each iteration (first entry: the starting disc); non-increasing.
     """
     n_sectors, size = cumulative.shape
+    moves = [int(v) for v in steps] + ([-int(v) for v in steps] if deflate else [])
     rho = np.full(n_sectors, min(int(round(rho0)), size - 1), dtype=np.int64)
     index = np.arange(n_sectors)
 
@@ -128,9 +135,9 @@ def inflate(cumulative, rho0, *, kappa=0.05, steps=(8, 4, 2, 1), iterations=20):
         for k in range(n_sectors):
             left, right = rho[k - 1], rho[(k + 1) % n_sectors]
             best_delta, best = 0.0, rho[k]
-            for step in steps:
-                new = rho[k] + int(step)
-                if new >= size:
+            for step in moves:
+                new = rho[k] + step
+                if new >= size or new < 1:
                     continue
                 delta = (cumulative[k, new] - cumulative[k, rho[k]]
                          + kappa * ((new - left) ** 2 + (right - new) ** 2
@@ -157,8 +164,8 @@ def region_mask(shape, x, y, rho):
     return distance < rho[sector]
 
 
-def radial_snake(data, disc, *, tolerance=0.3, ambiguous=0.15, n_sectors=64, rho_max=120,
-                 kappa=0.05, steps=(8, 4, 2, 1), iterations=20):
+def radial_snake(data, disc, *, tolerance=0.3, ambiguous=0.15, empty_cost=0.2, n_sectors=64,
+                 rho_max=120, kappa=0.05, steps=(8, 4, 2, 1), iterations=20, deflate=False):
     """One disc ``(x, y, r, xi, eta, omega)`` refined into a region (paper 2.3.3).
 
     Returns
@@ -168,8 +175,10 @@ def radial_snake(data, disc, *, tolerance=0.3, ambiguous=0.15, n_sectors=64, rho
         (history), ``iterations``.
     """
     x, y, r, xi, eta, omega = (float(v) for v in disc)
-    score = support(data, xi, eta, omega, tolerance=tolerance, ambiguous=ambiguous)
+    score = support(data, xi, eta, omega, tolerance=tolerance, ambiguous=ambiguous,
+                    empty_cost=empty_cost)
     cumulative = sector_profiles(score, x, y, n_sectors=n_sectors, rho_max=rho_max)
-    rho, history = inflate(cumulative, r, kappa=kappa, steps=steps, iterations=iterations)
+    rho, history = inflate(cumulative, r, kappa=kappa, steps=steps, iterations=iterations,
+                           deflate=deflate)
     return {"mask": region_mask(score.shape, x, y, rho), "rho": rho, "centre": (x, y),
             "energy": history, "iterations": len(history) - 1}

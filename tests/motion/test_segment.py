@@ -1,0 +1,162 @@
+"""Rigid-motion segmentation (paper 2.3): EA with sharing, radial snakes, the pipeline."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from replication.errors import InputError
+from replication.motion import disc_ea, segmentation, snakes
+from replication.motion.multi_synth import make_multi_sequence
+from replication.motion.segment_experiments import score_objects
+
+ROOT = Path(__file__).resolve().parents[2]
+
+TWO_OBJECTS = {
+    "shape": [128, 128], "n_frames": 2, "supersample": 2, "noise_sigma": 1 / 255,
+    "background_texture": {"kind": "procedural", "scale": 1.5},
+    "objects": [
+        {"center": [38, 40], "omega": 0.04, "texture": {"kind": "procedural", "scale": 1.5},
+         "shape": {"center": [38, 40], "r_inner": 0, "r_outer": 24, "gap_deg": 0}},
+        {"center": [92, 86], "omega": -0.045, "texture": {"kind": "procedural", "scale": 1.5},
+         "shape": {"center": [90, 88], "r_inner": 0, "r_outer": 24, "gap_deg": 0}}],
+}
+SMALL = {"ea": {"pop_size": 100, "generations": 40, "r_max": 24.0, "margin": 20.0,
+                "beta": 20.0, "R": 20.0, "sharing": 20.0, "motion_ratio": 1.0,
+                "project_fresh": True},
+         "snake": {"deflate": True, "rounds": 2, "rho_max": 60},
+         "accumulation": {"window": 20.0}}
+
+
+@pytest.fixture(scope="module")
+def two_objects():
+    return make_multi_sequence(TWO_OBJECTS, rng=1)
+
+
+def test_two_rotating_objects_are_segmented(two_objects):
+    frames, labels, truth = two_objects
+    found = segmentation.segment(frames, segmentation.settings_from(SMALL), 3)
+    score = score_objects(found["objects"], labels[0], truth)
+    for row in score["per_object"]:
+        assert row["centre_px"] <= 2.0, row
+        assert row["iou"] >= 0.6, row
+        assert abs(row["omega_pct"]) <= 15.0, row
+    assert score["false_regions"] == 0
+
+
+def test_zero_motion_gives_no_rotating_region(two_objects):
+    _, _, truth = two_objects
+    static = json.loads(json.dumps(TWO_OBJECTS))
+    for item in static["objects"]:
+        item["omega"] = 0.0
+    frames, _, _ = make_multi_sequence(static, rng=1)
+    found = segmentation.segment(frames, segmentation.settings_from(SMALL), 3)
+    assert found["objects"] == []
+    assert not found["rotating"].any()
+
+
+def test_sharing_penalises_only_the_higher_cost_of_an_overlapping_pair():
+    x, y, r = np.array([10.0, 15.0, 80.0]), np.array([10.0, 10.0, 80.0]), np.full(3, 8.0)
+    cost = np.array([5.0, 3.0, 4.0])
+    shared = disc_ea.shared_costs(cost, x, y, r, coefficient=2.0, area_unit=10.0)
+    overlap = disc_ea.overlap_areas(x, y, r)[0, 1]
+    assert overlap > 0
+    assert shared[1] == cost[1] and shared[2] == cost[2]
+    assert shared[0] == pytest.approx(cost[0] + 2.0 * overlap / 10.0)
+
+
+def test_overlap_area_matches_pixel_count():
+    x, y, r = np.array([0.0, 9.0]), np.array([0.0, 4.0]), np.array([10.0, 7.0])
+    grid = np.mgrid[-30:30:0.05, -30:30:0.05]
+    inside = ((grid[1] - x[0]) ** 2 + (grid[0] - y[0]) ** 2 < r[0] ** 2) & \
+        ((grid[1] - x[1]) ** 2 + (grid[0] - y[1]) ** 2 < r[1] ** 2)
+    assert disc_ea.overlap_areas(x, y, r)[0, 1] == pytest.approx(inside.sum() * 0.0025,
+                                                                 rel=0.01)
+
+
+def test_snake_keeps_only_energy_lowering_inflations():
+    rng = np.random.default_rng(0)
+    # sector energies: inside radius 20 pixels follow (-1 each), beyond they contradict
+    profile = np.where(np.arange(61) < 20, -1.0, 1.0) * rng.uniform(0.5, 1.5, (32, 61))
+    cumulative = np.cumsum(profile, axis=1)
+    rho, history = snakes.inflate(cumulative, 5, kappa=0.05, iterations=200)
+    assert len(history) < 201, "did not converge"
+    assert np.all(np.diff(history) <= 0) and history[-1] < history[0]
+    assert np.all(rho >= 5) and np.all(rho <= 28)
+    index = np.arange(32)
+    final = cumulative[index, rho].sum() + snakes.stiffness_energy(rho, 0.05)
+    assert final == pytest.approx(history[-1])
+    for k in range(32):
+        for step in (1, 2, 4, 8):
+            trial = rho.copy()
+            trial[k] = min(trial[k] + step, 60)
+            assert (cumulative[index, trial].sum() + snakes.stiffness_energy(trial, 0.05)
+                    >= history[-1] - 1e-12)
+
+
+def test_ea_is_deterministic_for_a_seed(two_objects):
+    data = disc_ea.disc_data(two_objects[0])
+    settings = {**SMALL["ea"], "generations": 5}
+    a = disc_ea.DiscEA(data, settings, rng=7).run()
+    b = disc_ea.DiscEA(data, settings, rng=7).run()
+    c = disc_ea.DiscEA(data, settings, rng=8).run()
+    assert np.array_equal(a["population"], b["population"])
+    assert not np.array_equal(a["population"], c["population"])
+
+
+@pytest.mark.parametrize("method, message", [
+    ({"ea": {"pop_size": 3}}, "pop_size=3: expected at least 10"),
+    ({"ea": {"r_min": 10, "r_max": 5}}, "expected 0 < r_min < r_max"),
+    ({"ea": {"keep": 0.5}}, "keep=0.5"),
+    ({"snake": {"stiffness": 1}}, "method.snake: unknown setting(s) ['stiffness']"),
+    ({"search": "cmaes"}, "method.search: 'cmaes'; expected paper or nichega"),
+    ({"colour": {}}, "method: unknown group(s) ['colour']"),
+])
+def test_bad_settings_are_refused_with_the_setting_named(method, message):
+    with pytest.raises(InputError) as error:
+        segmentation.settings_from(method)
+    assert message in str(error.value)
+
+
+def run_cli(*overrides):
+    command = [sys.executable, "-m", "replication.cli", *overrides]
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    return subprocess.run(command, cwd=ROOT, capture_output=True, text=True, env=env,
+                          timeout=300)
+
+
+def test_real_command_line_writes_objects_and_masks(tmp_path, two_objects):
+    from replication.motion.io import write_sequence_npz
+
+    frames, labels, truth = two_objects
+    data = tmp_path / "two.npz"
+    write_sequence_npz(data, frames, labels=labels, truth=truth)
+    tiny = ["method.ea.pop_size=60", "method.ea.generations=10", "method.ea.r_max=24",
+            "method.ea.margin=20", "method.snake.rho_max=60"]
+    results = []
+    for name in ("a", "b"):
+        done = run_cli("experiment=segment_multi", f"data.path={data}",
+                       f"out={tmp_path / name}", *tiny)
+        assert done.returncode == 0, done.stderr
+        results.append(json.loads((tmp_path / name / "result.json").read_text()))
+    for item in results[0]["objects"]:
+        assert set(item) >= {"xi", "eta", "omega", "area", "mask_file"}
+        assert (tmp_path / "a" / item["mask_file"]).exists()
+    assert results[0]["objects"] == results[1]["objects"]
+    assert (tmp_path / "a" / "figures" / "fig05_discs.png").exists()
+
+
+@pytest.mark.parametrize("overrides, message", [
+    (["data.path=/nonexistent/seq.npz"], "no such file or folder"),
+    (["method.ea.generations=0"], "generations=0: expected at least 1"),
+])
+def test_bad_input_on_the_command_line_gives_one_line(tmp_path, overrides, message):
+    done = run_cli("experiment=segment_multi", f"out={tmp_path / 'out'}", *overrides)
+    assert done.returncode == 2
+    lines = [line for line in done.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: ") and message in lines[0]
+    assert not (tmp_path / "out" / "result.json").exists()

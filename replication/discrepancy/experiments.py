@@ -8,11 +8,12 @@ from pathlib import Path
 
 import numpy as np
 
-from replication.cloth.io import read_trajectory
+from replication.cloth.io import read_trajectory, write_trajectory
 from replication.discrepancy import generate as gen
 from replication.discrepancy.workflow import analyse
 from replication.errors import InputError, check
 from replication.progress import progress
+from replication.provenance import file_sha256
 from replication.results import write_json_atomic
 
 
@@ -32,8 +33,76 @@ def discrepancy(config, out):
     result["data_path"] = str(path)
     if config.get("plots", True):
         from replication.figures.discrepancy_where import plot_where
-        result["plots"] = [str(p) for p in plot_where(result, Path(out))]
+        target = Path(config.get("figures_dir") or out)
+        result["plots"] = [str(p) for p in plot_where(result, target)]
     return result
+
+
+def example(config, out):
+    """A worked example: one dataset with a hidden effect, regenerated from its seed into
+    ``out`` (not stored), analysed by :func:`discrepancy`; the spec goes to a manifest."""
+    setting = config["example"]
+    n_frames = int(setting["n_frames"])
+    check(n_frames >= 100, f"example.n_frames={n_frames}: expected at least 100")
+    rng = np.random.default_rng(config["seed"])
+    spec = gen.draw_spec(rng, effects=[setting["effect"]],
+                         noise_range=[setting["noise_h"], setting["noise_h"]])
+    path = Path(out) / "example.npz"
+    write_trajectory(path, gen.make_trajectory(spec, n_frames))
+    run = dict(config)
+    run["data"] = {"path": str(path)}
+    start = time.perf_counter()
+    result = discrepancy(run, out)
+    result["analysis_seconds"] = time.perf_counter() - start
+    result["hidden"] = spec
+    result["hidden_coefficients"] = gen.truth_coefficients(spec, 0.001)
+    manifest = Path(config["manifest"])
+    write_json_atomic(manifest, {"config": {k: v for k, v in config.items()
+                                            if k not in ("out", "report")},
+                                 "spec": spec, "file": path.name,
+                                 "sha256": file_sha256(path),
+                                 "note": "regenerate with replicate experiment="
+                                         f"{config['name']}"})
+    return result
+
+
+def calibration(config, out):
+    """Effect-free datasets only: the null distribution of every decision statistic."""
+    study = config["study"]
+    n_datasets = int(study["n_datasets"])
+    check(n_datasets >= 1, f"study.n_datasets={n_datasets}: expected at least 1")
+    rng = np.random.default_rng(config["seed"])
+    rows = []
+    for index in range(n_datasets):
+        spec = gen.draw_spec(rng, effects=["none"], noise_range=study["noise_range"])
+        result = analyse(gen.make_trajectory(spec, int(study["n_frames"])),
+                         config.get("discrepancy") or {},
+                         rng=np.random.default_rng(spec["seed"]))
+        ratios = {name: s["wald"] / s["threshold"] for name, s in result["candidates"].items()}
+        rows.append({"noise_h": spec["noise_h"], "Q": result["where"]["Q"],
+                     "max_wald_over_threshold": max(ratios.values()),
+                     "significant": [n for n, s in result["candidates"].items()
+                                     if s["significant"]],
+                     "named": [e["name"] for e in result["named_effects"]],
+                     "unexplained": result["unexplained"] is not None})
+        progress(f"calibration {index + 1}/{n_datasets}: noise {spec['noise_h']:.2g} h, "
+                 f"Q {rows[-1]['Q']:.2f}, max Wald/threshold "
+                 f"{rows[-1]['max_wald_over_threshold']:.2f}")
+    q = np.array([r["Q"] for r in rows])
+    w = np.array([r["max_wald_over_threshold"] for r in rows])
+    settings = config.get("discrepancy") or {}
+    return {"datasets": rows, "summary": {
+        "n_datasets": n_datasets,
+        "Q_quantiles": {p: float(np.quantile(q, float(p))) for p in ("0.5", "0.9", "0.95")},
+        "Q_max": float(q.max()),
+        "q_threshold": settings.get("q_threshold"),
+        "rate_Q_above_threshold": float(np.mean(q > settings.get("q_threshold", np.inf))),
+        "wald_ratio_quantiles": {p: float(np.quantile(w, float(p)))
+                                 for p in ("0.5", "0.9", "0.95")},
+        "rate_any_significant": float(np.mean([bool(r["significant"]) for r in rows])),
+        "false_name_rate": float(np.mean([bool(r["named"]) for r in rows])),
+        "false_unexplained_rate": float(np.mean([r["unexplained"] for r in rows])),
+    }}
 
 
 def _coefficient_error(spec, named, mass):

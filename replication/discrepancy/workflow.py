@@ -149,6 +149,7 @@ def analyse(trajectory, config=None, *, rng=None):
     noise_floor = located["noise_sigma_h"]
     return {
         "named_effects": named,
+        "n_frames": int(data.n_frames),
         "unexplained": unexplained,
         "gap_before": gap_before["rollout"],
         "gap_after": gap_after["rollout"],

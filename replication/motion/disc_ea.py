@@ -133,14 +133,17 @@ def _row_span(row, x, y, r, width):
     return col0, col1
 
 
-@numba.njit(cache=True, parallel=True)
+@numba.njit(cache=True, nogil=True)
 def _disc_sums(pop, gx, gy, gt, gnorm, used, weight, cap, flow_cap):
     """Per individual: sum of capped normalised residuals, pixel count, sums of the
-    normal-flow residual of the rotation and of the motionless hypothesis (px/frame)."""
+    normal-flow residual of the rotation and of the motionless hypothesis (px/frame).
+
+    Serial on purpose: on this 2-core machine, shared with other jobs, numba's parallel
+    loop ran 8 times slower than this one (oversubscribed threads)."""
     n = pop.shape[0]
     n_pairs, height, width = gx.shape
     out = np.zeros((n, 4))
-    for i in numba.prange(n):
+    for i in range(n):
         x, y, r, xi, eta, omega = pop[i, 0], pop[i, 1], pop[i, 2], pop[i, 3], pop[i, 4], pop[i, 5]
         inverse = 1.0 / omega
         row0, row1 = max(0, int(math.floor(y - r))), min(height - 1, int(math.ceil(y + r)))
@@ -275,21 +278,22 @@ def _project(pop, gx, gy, gt, gnorm, used, damping, cap, uniforms):
     for i in range(pop.shape[0]):
         x, y, r, omega = pop[i, 0], pop[i, 1], pop[i, 2], pop[i, 5]
         row0, row1 = max(0, int(math.floor(y - r))), min(height - 1, int(math.ceil(y + r)))
-        cells = []
+        cells = np.empty((n_pairs * (row1 - row0 + 1) * (int(2 * r) + 3), 3), dtype=np.int64)
+        m = 0
         for row in range(row0, row1 + 1):
             col0, col1 = _row_span(row, x, y, r, width)
             for p in range(n_pairs):
                 for col in range(col0, col1 + 1):
                     if used[p, row, col]:
-                        cells.append((p, row, col))
-        m = len(cells)
+                        cells[m, 0], cells[m, 1], cells[m, 2] = p, row, col
+                        m += 1
         order = np.arange(m)
         for k in range(m - 1, 0, -1):      # Fisher-Yates with the given uniforms
             j = int(uniforms[i, k % uniforms.shape[1]] * (k + 1))
             order[k], order[j] = order[j], order[k]
         xi, eta = out[i, 3], out[i, 4]
         for k in range(m):
-            p, row, col = cells[order[k]]
+            p, row, col = cells[order[k], 0], cells[order[k], 1], cells[order[k], 2]
             a, b = gx[p, row, col], gy[p, row, col]
             residual = -a * (row - eta) + b * (col - xi) + gt[p, row, col] / omega
             g = gnorm[p, row, col]

@@ -10,7 +10,8 @@
 3. Each region's rotation is re-estimated by the accumulation of 2.2 (``irc.sweep``) with
    votes from the region's pixels only, over ``omega`` values around the disc's ``omega``
    (2.3.4); regions whose refined rotations share a centre (and speed) are one object,
-   whose rotation is accumulated again over the union of its regions.
+   whose rotation is accumulated again over the union of its regions. Optionally (beyond
+   the paper) that rotation is refined by ``irc.refine`` (iterative warping).
 """
 
 from __future__ import annotations
@@ -34,6 +35,9 @@ ACCUMULATION_DEFAULTS = {
     "cell": 1.0,              # accumulator cell, pixels
     "window": 40.0,           # accumulator: the region's bounding box plus this, pixels
     "min_pixels": 50,         # regions with fewer voting pixels are dropped
+    "max_pixels": 4000,       # at most this many voting pixels (evenly strided), for speed
+    "refine": False,          # not in the paper: irc.refine (warping) after the accumulation
+    "refine_max_px": 5.0,     # ... kept only if it moves the centre less than this, pixels
 }
 MERGE_DEFAULTS = {"centre_px": 8.0, "omega_rel": 0.25, "min_area": 150}
 # the additions to the paper that the study's "pipeline" uses; "faithful" switches them off
@@ -136,7 +140,9 @@ def restricted_accumulation(pixels, mask, omega, settings, *, margin):
     inside = mask[pixels.y.astype(np.int64), pixels.x.astype(np.int64)]
     if np.count_nonzero(inside) < settings["min_pixels"]:
         return None
-    chosen = _subset(pixels, inside)
+    index = np.flatnonzero(inside)
+    index = index[:: max(1, -(-index.size // int(settings["max_pixels"])))]
+    chosen = _subset(pixels, index)
     grid = window_grid(mask, mask.shape, settings, margin)
     best = irc.paper_estimate(irc.sweep(chosen, omega_values(omega, settings), grid))
     best["pixels"] = int(np.count_nonzero(inside))
@@ -173,6 +179,21 @@ def merge_groups(estimates, settings):
     for i in range(len(estimates)):
         groups.setdefault(root(i), []).append(i)
     return list(groups.values())
+
+
+def _refined(frames, found, settings):
+    """The other motion module's warping refinement of one object's rotation (beyond the
+    paper: it removes the accumulation's bias on omega); ``{}`` if it fails or moves the
+    centre by more than ``refine_max_px``."""
+    ea = settings["ea"]
+    better = irc.refine(frames, found["xi"], found["eta"], found["omega"], found["mask"],
+                        sigma=ea["sigma"], relative_threshold=ea["relative_threshold"])
+    values = [better["xi"], better["eta"], better["omega"]]
+    moved = math.hypot(better["xi"] - found["xi"], better["eta"] - found["eta"])
+    if not all(math.isfinite(v) for v in values) or moved > \
+            settings["accumulation"]["refine_max_px"]:
+        return {}
+    return {"xi": better["xi"], "eta": better["eta"], "omega": better["omega"]}
 
 
 def search_discs(data, settings, rng):
@@ -239,9 +260,13 @@ def segment(frames, settings, rng):
                                         margin=ea["margin"])
         if final is None:
             continue
-        objects.append({"xi": final["xi"], "eta": final["eta"], "omega": final["omega"],
-                        "peak": final["peak"], "area": int(np.count_nonzero(mask)),
-                        "mask": mask, "regions": members, "grid": final["grid"]})
+        found = {"xi": final["xi"], "eta": final["eta"], "omega": final["omega"],
+                 "peak": final["peak"], "area": int(np.count_nonzero(mask)), "mask": mask,
+                 "regions": members, "grid": final["grid"],
+                 "accumulation": {k: final[k] for k in ("xi", "eta", "omega")}}
+        if settings["accumulation"]["refine"]:
+            found.update(_refined(frames, found, settings))
+        objects.append(found)
     clock.append(time.perf_counter())
     steps = ("search", "snakes", "accumulation")
     return {"objects": objects, "discs": discs, "rotating": rotating, "regions": regions,

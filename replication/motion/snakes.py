@@ -17,6 +17,7 @@ after ``iterations``.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 
@@ -91,6 +92,55 @@ def stiffness_energy(rho, kappa):
     return kappa * float(np.sum((np.roll(rho, -1) - rho) ** 2))
 
 
+@numba.njit(cache=True)
+def _inflate(cumulative, rho, kappa, moves, iterations):
+    """The loop of :func:`inflate` (see there); returns the energy after each iteration."""
+    n_sectors, size = cumulative.shape
+    history = np.empty(iterations + 1)
+    energy = kappa * np.sum((np.roll(rho, -1) - rho) ** 2)
+    for k in range(n_sectors):
+        energy += cumulative[k, rho[k]]
+    history[0] = energy
+    done = 0
+    for it in range(iterations):
+        changed = False
+        for step in moves:          # the whole contour inflated, while that lowers E
+            if step <= 0:
+                continue
+            delta = 0.0
+            for k in range(n_sectors):
+                new = min(rho[k] + step, size - 1)
+                right = min(rho[(k + 1) % n_sectors] + step, size - 1)
+                delta += cumulative[k, new] - cumulative[k, rho[k]]
+                delta += kappa * ((right - new) ** 2 - (rho[(k + 1) % n_sectors] - rho[k]) ** 2)
+            if delta < 0.0:
+                for k in range(n_sectors):
+                    rho[k] = min(rho[k] + step, size - 1)
+                energy += delta
+                changed = True
+        for k in range(n_sectors):
+            left, right = rho[k - 1], rho[(k + 1) % n_sectors]
+            best_delta, best = 0.0, rho[k]
+            for step in moves:
+                new = rho[k] + step
+                if new >= size or new < 1:
+                    continue
+                delta = (cumulative[k, new] - cumulative[k, rho[k]]
+                         + kappa * ((new - left) ** 2 + (right - new) ** 2
+                                    - (rho[k] - left) ** 2 - (right - rho[k]) ** 2))
+                if delta < best_delta:
+                    best_delta, best = delta, new
+            if best != rho[k]:
+                rho[k] = best
+                energy += best_delta
+                changed = True
+        done = it + 1
+        history[done] = energy
+        if not changed:
+            break
+    return history[: done + 1]
+
+
 def inflate(cumulative, rho0, *, kappa=0.05, steps=(8, 4, 2, 1), iterations=20,
             deflate=False):
     """The paper's snake: inflate sectors while the energy decreases.
@@ -120,37 +170,9 @@ def inflate(cumulative, rho0, *, kappa=0.05, steps=(8, 4, 2, 1), iterations=20,
     n_sectors, size = cumulative.shape
     moves = [int(v) for v in steps] + ([-int(v) for v in steps] if deflate else [])
     rho = np.full(n_sectors, min(int(round(rho0)), size - 1), dtype=np.int64)
-    index = np.arange(n_sectors)
-
-    def energy(r):
-        return float(cumulative[index, r].sum()) + stiffness_energy(r, kappa)
-
-    history = [energy(rho)]
-    for _ in range(int(iterations)):
-        changed = False
-        for step in steps:      # the whole contour inflated, while that lowers E
-            grown = np.minimum(rho + int(step), size - 1)
-            if energy(grown) < energy(rho):
-                rho, changed = grown, True
-        for k in range(n_sectors):
-            left, right = rho[k - 1], rho[(k + 1) % n_sectors]
-            best_delta, best = 0.0, rho[k]
-            for step in moves:
-                new = rho[k] + step
-                if new >= size or new < 1:
-                    continue
-                delta = (cumulative[k, new] - cumulative[k, rho[k]]
-                         + kappa * ((new - left) ** 2 + (right - new) ** 2
-                                    - (rho[k] - left) ** 2 - (right - rho[k]) ** 2))
-                if delta < best_delta:
-                    best_delta, best = delta, new
-            if best != rho[k]:
-                rho[k] = best
-                changed = True
-        history.append(energy(rho))
-        if not changed:
-            break
-    return rho, history
+    history = _inflate(np.ascontiguousarray(cumulative, dtype=np.float64), rho, float(kappa),
+                       np.array(moves, dtype=np.int64), int(iterations))
+    return rho, [float(v) for v in history]
 
 
 def region_mask(shape, x, y, rho):

@@ -160,3 +160,18 @@ def test_bad_input_on_the_command_line_gives_one_line(tmp_path, overrides, messa
     lines = [line for line in done.stderr.splitlines() if line.strip()]
     assert len(lines) == 1 and lines[0].startswith("error: ") and message in lines[0]
     assert not (tmp_path / "out" / "result.json").exists()
+
+
+def test_generator_refuses_too_many_objects_with_the_count_named():
+    spec = json.loads(json.dumps(TWO_OBJECTS))
+    spec["objects"] = spec["objects"] * 3
+    with pytest.raises(InputError, match="objects: 6 object"):
+        make_multi_sequence(spec, rng=0)
+
+
+def test_generator_is_deterministic_and_labels_follow_the_objects(two_objects):
+    frames, labels, truth = make_multi_sequence(TWO_OBJECTS, rng=1)
+    assert np.array_equal(frames, two_objects[0]) and np.array_equal(labels, two_objects[1])
+    assert [o["label"] for o in truth["objects"]] == [1, 2]
+    area = np.count_nonzero(labels[0] == 1)
+    assert area == pytest.approx(np.pi * 24 ** 2, rel=0.05)

@@ -159,10 +159,11 @@ def blind_study(config, out):
 
 def summarise(rows, study):
     """Rates, confusion matrix, gap-shrink factors and coefficient errors of a blind study."""
-    classes = sorted({r["expected"] for r in rows} | {r["call"] for r in rows})
-    confusion = {e: {c: 0 for c in classes} for e in classes}
+    hidden = sorted({r["spec"]["effect"] for r in rows})
+    calls = sorted({r["expected"] for r in rows} | {r["call"] for r in rows})
+    confusion = {e: {c: 0 for c in calls} for e in hidden}
     for r in rows:
-        confusion[r["expected"]][r["call"]] += 1
+        confusion[r["spec"]["effect"]][r["call"]] += 1
     moderate = float(study["moderate_noise_h"])
     effect_rows = [r for r in rows if r["expected"] != "none"]
     moderate_rows = [r for r in effect_rows if r["spec"]["noise_h"] <= moderate]
@@ -176,7 +177,7 @@ def summarise(rows, study):
         return float(np.mean([r["correct"] for r in subset])) if subset else None
 
     return {
-        "n_datasets": len(rows), "classes": classes, "confusion": confusion,
+        "n_datasets": len(rows), "hidden": hidden, "calls": calls, "confusion": confusion,
         "correct_rate_all_effects": rate(effect_rows),
         "correct_rate_moderate_snr": rate(moderate_rows),
         "n_moderate": len(moderate_rows),

@@ -28,6 +28,7 @@ LAG_BEFORE = 2
 LAG_AFTER = 3
 BIG_TAU = 1e9
 PLAUSIBLE_REST = (0.6, 1.5)
+HAC_LAGS = 2
 MASK_MARGIN = 0.02  # relative: tau may be off by a few percent while the mask is built
 
 
@@ -159,7 +160,8 @@ def cluster_sums(columns, target, frames, mask, *, block=5):
 
     Returns
     -------
-    G : (C, m, m) ``sum Z^T Phi``; hz : (C, m) ``sum Z^T y``; counts : (C,) rows used.
+    G : (C, m, m) ``sum Z^T Phi``; hz : (C, m) ``sum Z^T y``; labels : (C,) cluster index
+    ``t // block`` (consecutive labels are neighbouring blocks of time).
     """
     frames = np.asarray(frames)
     cluster_of = frames // block
@@ -167,7 +169,6 @@ def cluster_sums(columns, target, frames, mask, *, block=5):
     m = columns.shape[-1]
     G = np.zeros((labels.size, m, m))
     hz = np.zeros((labels.size, m))
-    counts = np.zeros(labels.size)
     for row, t in enumerate(frames):
         keep = mask[t]
         phi = columns[t, keep].reshape(-1, m)
@@ -176,17 +177,21 @@ def cluster_sums(columns, target, frames, mask, *, block=5):
         c = which[row]
         G[c] += z.T @ phi
         hz[c] += z.T @ y
-        counts[c] += y.size
-    return G, hz, counts
+    return G, hz, labels
 
 
-def iv_solve(G, hz, cols=None, clusters=None):
+def iv_solve(G, hz, cols=None, clusters=None, labels=None):
     """Solve the summed IV equations on columns ``cols`` and clusters ``clusters``.
+
+    The covariance is a sandwich over clusters; with ``labels``, products of the scores of
+    blocks up to ``HAC_LAGS`` apart are added with Bartlett weights (Newey-West): the
+    residual noise ``e_{t+1} - 2 e_t + e_{t-1}`` and the instruments' noise are correlated
+    across block boundaries, and leaving that out misstates the variances.
 
     Returns
     -------
     theta : (k,) ndarray
-    cov : (k, k) ndarray, cluster-robust (sandwich over clusters)
+    cov : (k, k) ndarray
     """
     if cols is None:
         cols = np.arange(G.shape[1])
@@ -198,7 +203,18 @@ def iv_solve(G, hz, cols=None, clusters=None):
     theta = bread @ hs.sum(axis=0)
     scores = hs - Gs @ theta
     n_c = len(clusters)
-    meat = scores.T @ scores * n_c / max(n_c - 1, 1)
+    meat = scores.T @ scores
+    if labels is not None and n_c > 1:
+        lab = np.asarray(labels)[clusters]
+        position = {int(label): k for k, label in enumerate(lab)}
+        for lag in range(1, HAC_LAGS + 1):
+            pairs = [(k, position[int(label) + lag]) for k, label in enumerate(lab)
+                     if int(label) + lag in position]
+            if pairs:
+                first, second = np.array(pairs).T
+                cross = scores[first].T @ scores[second]
+                meat = meat + (1.0 - lag / (HAC_LAGS + 1.0)) * (cross + cross.T)
+    meat = meat * n_c / max(n_c - 1, 1)
     return theta, bread @ meat @ bread.T
 
 
@@ -318,8 +334,8 @@ def fit_model(data, frames, effect_names=(), *, model="5", base=None, rounds=2, 
     for _ in range(rounds):
         mask = constraint_mask(data, base, terms, frames)
         columns, slices = design(data, base, effect_names, model)
-        G, hz, _ = cluster_sums(columns, data.target, frames, mask, block=block)
-        theta, cov = iv_solve(G, hz)
+        G, hz, labels = cluster_sums(columns, data.target, frames, mask, block=block)
+        theta, cov = iv_solve(G, hz, labels=labels)
         nb = n_base(model)
         terms = [(name, theta[slices[name]]) for name in effect_names]
         base = base_from_theta(theta[:nb], model, base.tau)

@@ -50,12 +50,12 @@ def score_candidates(data, base_fit, frames, *, model="5", alpha=1e-3, n_subsamp
     names = candidate_names(model)
     frames = usable_frames(frames, data.n_frames)
     columns, slices = design(data, base_fit.base, names, model)
-    G, hz, _ = cluster_sums(columns, data.target, frames, base_fit.mask, block=block)
+    G, hz, labels = cluster_sums(columns, data.target, frames, base_fit.mask, block=block)
     nb = n_base(model)
 
     def solve(name, clusters=None):
         cols = np.r_[np.arange(nb), np.arange(slices[name].start, slices[name].stop)]
-        theta, cov = iv_solve(G, hz, cols, clusters)
+        theta, cov = iv_solve(G, hz, cols, clusters, labels)
         effect = fx.get_effect(name)
         return theta[nb:], cov[nb:, nb:], wald(theta[nb:], cov[nb:, nb:], effect.nonnegative)
 

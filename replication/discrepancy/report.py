@@ -45,13 +45,14 @@ def blind_section(result):
         f"| analysis time per dataset (median / max) | | "
         f"{fmt(s['wall_seconds_median'], 3)} s / {fmt(s['wall_seconds_max'], 3)} s |",
         "",
-        "Confusion matrix (rows hidden, columns called):",
+        "Confusion matrix (rows hidden, columns called; the right call for `gust`, outside "
+        "the library, is `unexplained`):",
         "",
-        "| hidden \\ called | " + " | ".join(s["classes"]) + " |",
-        "|---|" + "---|" * len(s["classes"]),
+        "| hidden \\ called | " + " | ".join(s["calls"]) + " |",
+        "|---|" + "---|" * len(s["calls"]),
     ]
-    for hidden in s["classes"]:
-        counts = [str(s["confusion"][hidden][called]) for called in s["classes"]]
+    for hidden in s["hidden"]:
+        counts = [str(s["confusion"][hidden][called]) for called in s["calls"]]
         lines.append(f"| {hidden} | " + " | ".join(counts) + " |")
     lines += ["", f"![blind study]({result['figure']})" if result.get("figure") else ""]
     moderate = s["correct_rate_moderate_snr"]

@@ -14,20 +14,21 @@ import numpy as np  # noqa: E402
 def plot_blind(result, path):
     """Confusion matrix (hidden vs called) and gap before/after per dataset; returns path."""
     summary = result["summary"]
-    classes = summary["classes"]
-    matrix = np.array([[summary["confusion"][e][c] for c in classes] for e in classes])
+    hidden, calls = summary["hidden"], summary["calls"]
+    matrix = np.array([[summary["confusion"][e][c] for c in calls] for e in hidden])
     fig, axes = plt.subplots(1, 2, figsize=(13, 5.5))
     axes[0].imshow(matrix, cmap="Blues")
     for (i, j), value in np.ndenumerate(matrix):
         if value:
             axes[0].text(j, i, str(value), ha="center", va="center")
-    axes[0].set_xticks(range(len(classes)), classes, rotation=60, ha="right", fontsize=8)
-    axes[0].set_yticks(range(len(classes)), classes, fontsize=8)
+    axes[0].set_xticks(range(len(calls)), calls, rotation=60, ha="right", fontsize=8)
+    axes[0].set_yticks(range(len(hidden)), hidden, fontsize=8)
     axes[0].set_xlabel("called")
-    axes[0].set_ylabel("hidden")
+    axes[0].set_ylabel("hidden (gust: outside the library)")
     axes[0].set_title("blind naming: confusion matrix")
     rows = result["datasets"]
-    colours = ["tab:green" if r["correct"] else "tab:red" for r in rows]
+    colours = ["0.6" if r["expected"] == "none" else ("tab:green" if r["correct"] else "tab:red")
+               for r in rows]
     axes[1].scatter([r["gap_before"] for r in rows], [r["gap_after"] for r in rows],
                     c=colours, s=18)
     low = min(min(r["gap_after"] for r in rows), min(r["gap_before"] for r in rows))
@@ -38,7 +39,7 @@ def plot_blind(result, path):
     axes[1].set_yscale("log")
     axes[1].set_xlabel("held-out rollout RMS, base model (h)")
     axes[1].set_ylabel("after adding named effect (h)")
-    axes[1].set_title("gap (green: correct call)")
+    axes[1].set_title("gap (green: correct call, red: wrong, grey: effect-free)")
     axes[1].legend()
     fig.tight_layout()
     path = Path(path)

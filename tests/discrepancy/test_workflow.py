@@ -106,3 +106,21 @@ def test_command_line(tmp_path, clean_trajectory):
     assert done.stderr.strip().startswith("error: ") and "bad.npz" in done.stderr
     assert len(done.stderr.strip().splitlines()) == 1
     assert not (out_bad / "result.json").exists()
+
+
+def test_effect_outside_the_library_is_unexplained_not_named():
+    spec = _spec("gust", {"per_mass": [0.0, 2.0, 0.0], "frequency": 8.0, "phase": 0.3},
+                 noise=3e-5)
+    result = analyse(gen.make_trajectory(spec, N_FRAMES), {"n_subsamples": 10}, rng=0)
+    assert result["named_effects"] == []
+    assert result["unexplained"] is not None
+
+
+def test_generator_is_deterministic():
+    spec = gen.draw_spec(np.random.default_rng(5), effects=["body_force"],
+                         noise_range=(1e-4, 1e-4))
+    first = gen.make_trajectory(spec, 30).positions
+    second = gen.make_trajectory(spec, 30).positions
+    assert np.array_equal(first, second)
+    assert spec == gen.draw_spec(np.random.default_rng(5), effects=["body_force"],
+                                 noise_range=(1e-4, 1e-4))

@@ -9,6 +9,11 @@ best cost and the parameter errors at each budget.
 
 from __future__ import annotations
 
+import multiprocessing
+import time
+from concurrent.futures import ProcessPoolExecutor
+
+import numba
 import numpy as np
 
 from replication.cloth import identify_problem as problem
@@ -97,6 +102,7 @@ def _aggregate(records, budgets, names):
     hits = [r.get("evals_to_success") for r in records]
     reached = sorted(h for h in hits if h is not None)
     out["evals_to_success"] = hits
+    out["median_run_seconds"] = float(np.median([r["run_seconds"] for r in records]))
     out["median_evals_to_success"] = float(np.median(reached)) if reached else None
     for b in budgets:
         rows = [r["at_budget"][str(b)] for r in records]
@@ -113,6 +119,50 @@ def _aggregate(records, budgets, names):
     return out
 
 
+_CASES = {}
+
+
+def _case_for(config, label):
+    """The :class:`Case` of ``label``, loaded once per process."""
+    key = (label, repr(config["cost"]), repr(config["bounds"]), repr(config.get("data")))
+    if key not in _CASES:
+        _CASES[key] = next(c for c in load_cases(config) if c.label == label)
+    return _CASES[key]
+
+
+def _one_run(task):
+    """One (reference, optimiser, seed) run; top level so that worker processes can run it."""
+    config, label, case_index, opt_index, i, budgets = task
+    # most baselines evaluate one or a few vectors at a time: a parallel kernel region per
+    # call costs more than it gains, so each worker runs its kernels on one thread
+    numba.set_num_threads(min(int(config["threads_per_worker"]), numba.config.NUMBA_NUM_THREADS))
+    case = _case_for(config, label)
+    entry = config["optimisers"][opt_index]
+    seed = int(run_rng(config["seed"], case_index, opt_index, i).integers(2**31))
+    rng = run_rng(config["seed"], case_index, opt_index, i, 1)
+    start = time.perf_counter()
+    objective, info = run_optimiser(entry, case, budget=budgets[-1], rng=rng, seed=seed,
+                                    rest_spread=config["init"]["rest_spread"])
+    record = score_run(objective, case, budgets, float(config["success_rtol"]))
+    record["info"] = info
+    record["run_seconds"] = time.perf_counter() - start
+    return record
+
+
+def _map(tasks, workers):
+    """Run tasks in order, in ``workers`` processes (1: in this process). Every run is
+    seeded on its own, so the results do not depend on the number of workers."""
+    if workers == 1:
+        threads = numba.get_num_threads()
+        try:
+            return [_one_run(task) for task in tasks]
+        finally:
+            numba.set_num_threads(threads)
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+        return list(pool.map(_one_run, tasks, chunksize=1))
+
+
 def baselines_study(config, out):
     """Runner of ``cloth_baselines``: every optimiser, ``n_seeds`` seeds, each reference."""
     check_common(config)
@@ -120,32 +170,27 @@ def baselines_study(config, out):
     _check_optimisers(optimisers)
     budgets = sorted(int(b) for b in config["budgets"])
     check(budgets[0] >= 1, f"budgets={budgets}: expected positive evaluation counts")
+    workers = int(config.get("workers", 1))
+    check(workers >= 1, f"workers={workers}: expected at least 1 process")
     cases = load_cases(config)
-    rtol = float(config["success_rtol"])
     names = list(cases[0].space.names)
+    n_seeds = int(config["n_seeds"])
+    tasks = [(config, case.label, ci, oi, i, budgets) for ci, case in enumerate(cases)
+             for oi in range(len(optimisers)) for i in range(n_seeds)]
+    progress(f"{len(tasks)} runs in {workers} process(es)")
+    records = iter(_map(tasks, workers))
     summary, runs = {}, {}
-    for case_index, case in enumerate(cases):
+    for case in cases:
         summary[case.label], runs[case.label] = {}, {}
-        for opt_index, entry in enumerate(optimisers):
-            records = []
-            for i in range(int(config["n_seeds"])):
-                seed = int(run_rng(config["seed"], case_index, opt_index, i).integers(2**31))
-                rng = run_rng(config["seed"], case_index, opt_index, i, 1)
-                objective, info = run_optimiser(entry, case, budget=budgets[-1], rng=rng,
-                                                seed=seed,
-                                                rest_spread=config["init"]["rest_spread"])
-                record = score_run(objective, case, budgets, rtol)
-                record["info"] = info
-                records.append(record)
-            runs[case.label][entry["name"]] = records
-            summary[case.label][entry["name"]] = _aggregate(records, budgets, names)
-            progress(f"{case.label} {entry['name']}: {len(records)} runs")
+        for entry in optimisers:
+            chunk = [next(records) for _ in range(n_seeds)]
+            runs[case.label][entry["name"]] = chunk
+            summary[case.label][entry["name"]] = _aggregate(chunk, budgets, names)
     checkpoints = _checkpoints(budgets[-1])
     figures = cloth_baselines_ecdf.plot(summary, checkpoints, budgets[-1],
                                         ecdf_name=config["figures"]["ecdf"],
                                         convergence_name=config["figures"]["convergence"],
                                         figure_dir=config["figure_dir"])
-    best_label = cases[-1].label
     return {"budgets": budgets, "names": names, "checkpoints": checkpoints,
             "summary": summary, "runs": runs, "figures": figures,
-            "cost_used": config["cost"], "reference_for_best": best_label}
+            "cost_used": config["cost"]}

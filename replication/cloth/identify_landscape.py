@@ -88,7 +88,7 @@ def landscapes(config, out):
                  f"{len(path)} generations")
         figures.append(fig09_10_landscapes.plot(
             panels, path, reference=(reference[3], tau_ref), title=case.label,
-            out_name=config["figures"][case.label],
+            out_name=config["figures"].get(case.label, f"landscape_{case.label}.png"),
             figure_dir=config["figure_dir"]))
         results[case.label] = {
             "panels": {name: p["summary"] for name, p in panels.items()},

@@ -17,13 +17,35 @@ All cost evaluations go through the shared :class:`~replication.optim.objective.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from scipy.optimize import minimize_scalar
+from scipy.signal import savgol_filter
 
 from replication.cloth.identify import EASettings, PaperEA
 from replication.cloth.mesh import FAMILY_OF_TYPE, N_TYPES, springs
 from replication.errors import check
 from replication.optim.objective import BudgetExhausted
+
+
+def smoothed(trajectory, window, polyorder=3):
+    """``trajectory`` with positions smoothed over time (Savitzky-Golay, ``window``
+    frames, pinned particles untouched) and velocities re-derived; ``window=0``: as is.
+
+    Against position noise: the one-step regression differentiates positions twice, so
+    noise of sd s enters its target with sd of order s / dt^2 (shared/NOTES.md).
+    """
+    if window == 0:
+        return trajectory
+    check(window % 2 == 1 and window > polyorder and window <= trajectory.n_frames,
+          f"regression.smooth_windows: {window}: expected an odd number of frames above "
+          f"{polyorder} and at most {trajectory.n_frames}")
+    positions = savgol_filter(trajectory.flat_positions(), window, polyorder, axis=0)
+    free = trajectory.scene().free
+    positions[:, ~free] = trajectory.flat_positions()[:, ~free]
+    return dataclasses.replace(trajectory, velocities=None,
+                               positions=positions.reshape(trajectory.positions.shape))
 
 
 def regression_frames(n_frames, *, first, stride):
@@ -192,7 +214,8 @@ def structured_identify(trajectory, objective, space, *, rng, settings):
     space : SearchSpace
     rng : np.random.Generator
     settings : dict
-        ``regression: {first, stride, trim_rounds, trim_factor}``,
+        ``regression: {first, stride, trim_rounds, trim_factor, frame_quantile,
+        smooth_windows}``,
         ``tau_scan: {n_grid, refine_evals, cycles}``,
         ``refine: {box (relative half-width), ea: {...EASettings}}``.
 
@@ -205,10 +228,16 @@ def structured_identify(trajectory, objective, space, *, rng, settings):
     frames = regression_frames(trajectory.n_frames, first=reg["first"], stride=reg["stride"])
     check(frames.size > 0, f"regression.first={reg['first']}: no frame of the "
                            f"{trajectory.n_frames}-frame data left for the regression")
-    k, rest, reg_info = regress_stiffness(trajectory, model=model, frames=frames,
-                                          trim_rounds=reg["trim_rounds"],
-                                          trim_factor=reg["trim_factor"],
-                                          frame_quantile=reg["frame_quantile"])
+    # one fit per smoothing window; keep the one that explains its data best
+    fits = []
+    for window in reg.get("smooth_windows", [0]):
+        k, rest, reg_info = regress_stiffness(smoothed(trajectory, int(window)), model=model,
+                                              frames=frames, trim_rounds=reg["trim_rounds"],
+                                              trim_factor=reg["trim_factor"],
+                                              frame_quantile=reg["frame_quantile"])
+        fits.append((reg_info["median_residual"], int(window), k, rest, reg_info))
+    _, window, k, rest, reg_info = min(fits, key=lambda fit: fit[0])
+    reg_info["smooth_window"] = window
     n_tau = 6 if model == "18" else 1
     # start with every constraint inactive (tau at its upper bound), then scan each tau
     tau_start = objective.upper[-n_tau:]

@@ -11,7 +11,8 @@
    votes from the region's pixels only, over ``omega`` values around the disc's ``omega``
    (2.3.4); regions whose refined rotations share a centre (and speed) are one object,
    whose rotation is accumulated again over the union of its regions. Optionally (beyond
-   the paper) that rotation is refined by ``irc.refine`` (iterative warping).
+   the paper) that rotation is refined by ``irc.refine`` (iterative warping), and the
+   object's mask grown by snakes from extra seeds (:func:`grow_from_seeds`).
 """
 
 from __future__ import annotations
@@ -25,7 +26,8 @@ from replication.errors import InputError
 from replication.motion import disc_ea, irc, snakes
 from replication.motion.derivatives import PixelDerivatives
 
-SNAKE_DEFAULTS = {"tolerance": 0.3, "ambiguous": 0.15, "empty_cost": 0.2, "n_sectors": 64,
+SNAKE_DEFAULTS = {"tolerance": 0.3, "ambiguous": 0.15, "empty_cost": 0.2,
+                  "ambiguous_cost": 0.0, "n_sectors": 64,
                   "rho_max": 120, "kappa": 0.05, "steps": [8, 4, 2, 1], "iterations": 20,
                   "deflate": False, "rounds": 1}
 ACCUMULATION_DEFAULTS = {
@@ -39,10 +41,14 @@ ACCUMULATION_DEFAULTS = {
     "refine": False,          # not in the paper: irc.refine (warping) after the accumulation
     "refine_max_px": 5.0,     # ... kept only if it moves the centre less than this, pixels
 }
-MERGE_DEFAULTS = {"centre_px": 8.0, "omega_rel": 0.25, "min_area": 150}
+MERGE_DEFAULTS = {"centre_px": 8.0, "omega_rel": 0.25, "min_area": 150,
+                  "extra_seeds": 0,        # not in the paper: extra snakes per object (below)
+                  "seed_sigma": 4.0,      # pixels
+                  "seed_density": 0.5}
 # the additions to the paper that the study's "pipeline" uses; "faithful" switches them off
 FAITHFUL = {"ea": {"project_fresh": False, "reject_static": False},
-            "snake": {"deflate": False, "rounds": 1}}
+            "snake": {"deflate": False, "rounds": 1},
+            "accumulation": {"refine": False}, "merge": {"extra_seeds": 0}}
 GROUPS = {"ea": disc_ea.DEFAULTS, "snake": SNAKE_DEFAULTS,
           "accumulation": ACCUMULATION_DEFAULTS, "merge": MERGE_DEFAULTS}
 
@@ -196,6 +202,39 @@ def _refined(frames, found, settings):
     return {"xi": better["xi"], "eta": better["eta"], "omega": better["omega"]}
 
 
+def grow_from_seeds(data, found, settings):
+    """Extra radial snakes for one object (not in the paper; ``extra_seeds = 0`` is the
+    paper): a radial snake is star-shaped around its centre and cannot cover a C-shape from
+    one disc. With the object's final rotation, the pixels that follow it but lie outside
+    its mask are smoothed by a Gaussian of ``seed_sigma`` pixels; where that density peaks
+    above ``seed_density``, a snake starts from a small disc and its region joins the mask.
+
+    Returns
+    -------
+    mask : (H, W) ndarray of bool
+    """
+    from scipy import ndimage
+
+    merge, snake = settings["merge"], dict(settings["snake"])
+    snake.pop("rounds", None)
+    snake["steps"] = tuple(int(v) for v in snake["steps"])
+    mask = found["mask"].copy()
+    score = snakes.support(data, found["xi"], found["eta"], found["omega"],
+                           tolerance=snake["tolerance"], ambiguous=snake["ambiguous"],
+                           empty_cost=snake["empty_cost"],
+                           ambiguous_cost=snake["ambiguous_cost"])
+    for _ in range(int(merge["extra_seeds"])):
+        density = ndimage.gaussian_filter(((score > 0.5) & ~mask).astype(float),
+                                          merge["seed_sigma"])
+        row, col = np.unravel_index(int(np.argmax(density)), density.shape)
+        if density[row, col] < merge["seed_density"]:
+            break
+        start = [float(col), float(row), 2.0 * merge["seed_sigma"], found["xi"], found["eta"],
+                 found["omega"]]
+        mask |= snakes.radial_snake(data, start, **snake)["mask"]
+    return mask
+
+
 def search_discs(data, settings, rng):
     """Step 1: the retained discs ``(n, 6)`` of the chosen search, and its evaluations."""
     if settings["search"] == "nichega":
@@ -266,6 +305,9 @@ def segment(frames, settings, rng):
                  "accumulation": {k: final[k] for k in ("xi", "eta", "omega")}}
         if settings["accumulation"]["refine"]:
             found.update(_refined(frames, found, settings))
+        if settings["merge"]["extra_seeds"] > 0:
+            found["mask"] = grow_from_seeds(data, found, settings)
+            found["area"] = int(np.count_nonzero(found["mask"]))
         objects.append(found)
     clock.append(time.perf_counter())
     steps = ("search", "snakes", "accumulation")

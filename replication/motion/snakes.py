@@ -21,7 +21,8 @@ import numba
 import numpy as np
 
 
-def support(data, xi, eta, omega, *, tolerance=0.3, ambiguous=0.15, empty_cost=0.2):
+def support(data, xi, eta, omega, *, tolerance=0.3, ambiguous=0.15, empty_cost=0.2,
+            ambiguous_cost=0.0):
     """Per-pixel evidence ``s(p)`` for the rotation ``(xi, eta, omega)``, shape ``(H, W)``.
 
     Normal-flow residuals (pixels/frame) of each pixel with a sufficient gradient, summed
@@ -29,8 +30,8 @@ def support(data, xi, eta, omega, *, tolerance=0.3, ambiguous=0.15, empty_cost=0
     the rotation, ``e_0 = |It| / |grad I|`` for no motion.
 
     - +1 where ``e_rot < tolerance`` and ``e_rot < e_0 / 2`` (follows the rotation);
-    - 0 where ``e_rot < tolerance`` and ``e_0 < ambiguous`` (too slow to tell, e.g. near
-      the rotation centre);
+    - ``-ambiguous_cost`` where ``e_rot < tolerance`` and ``e_0 < ambiguous`` (too slow to
+      tell, e.g. near the rotation centre);
     - ``-empty_cost`` where the gradient is too weak to tell anything (so regions do not
       spread over flat areas, the role of the paper's over-normalisation in 2.3.2);
     - -1 elsewhere (contradicts the rotation).
@@ -52,8 +53,8 @@ def support(data, xi, eta, omega, *, tolerance=0.3, ambiguous=0.15, empty_cost=0
         e_0 = np.abs(data.gt[p]) / g
         follows = (e_rot < tolerance) & (e_rot < 0.5 * e_0)
         unclear = (e_rot < tolerance) & (e_0 < ambiguous) & ~follows
-        score += np.where(data.used[p], np.where(follows, 1.0, np.where(unclear, 0.0, -1.0)),
-                          -empty_cost)
+        evidence = np.where(follows, 1.0, np.where(unclear, -ambiguous_cost, -1.0))
+        score += np.where(data.used[p], evidence, -empty_cost)
     return score / n_pairs
 
 
@@ -186,8 +187,9 @@ def region_mask(shape, x, y, rho):
     return distance < rho[sector]
 
 
-def radial_snake(data, disc, *, tolerance=0.3, ambiguous=0.15, empty_cost=0.2, n_sectors=64,
-                 rho_max=120, kappa=0.05, steps=(8, 4, 2, 1), iterations=20, deflate=False):
+def radial_snake(data, disc, *, tolerance=0.3, ambiguous=0.15, empty_cost=0.2,
+                 ambiguous_cost=0.0, n_sectors=64, rho_max=120, kappa=0.05,
+                 steps=(8, 4, 2, 1), iterations=20, deflate=False):
     """One disc ``(x, y, r, xi, eta, omega)`` refined into a region (paper 2.3.3).
 
     Returns
@@ -198,7 +200,7 @@ def radial_snake(data, disc, *, tolerance=0.3, ambiguous=0.15, empty_cost=0.2, n
     """
     x, y, r, xi, eta, omega = (float(v) for v in disc)
     score = support(data, xi, eta, omega, tolerance=tolerance, ambiguous=ambiguous,
-                    empty_cost=empty_cost)
+                    empty_cost=empty_cost, ambiguous_cost=ambiguous_cost)
     cumulative = sector_profiles(score, x, y, n_sectors=n_sectors, rho_max=rho_max)
     rho, history = inflate(cumulative, r, kappa=kappa, steps=steps, iterations=iterations,
                            deflate=deflate)

@@ -155,6 +155,7 @@ def single_rotation(config, out):
     sequence = _load(given or config["default_data"])
     progress(f"{sequence.source}: {sequence.frames.shape[0]} frames of "
              f"{sequence.frames.shape[1]} x {sequence.frames.shape[2]}")
+    single.warm_up()
     found = single.find_rotation(sequence.frames, settings)
     paper, refined = found["paper"], found["refined"]
     progress(f"paper: {paper}; refined: {refined}")
@@ -181,7 +182,7 @@ def single_rotation(config, out):
 def _methods(config, settings):
     """name -> function(frames, seed) -> {xi, eta, omega} for the accuracy table's baselines."""
     flow = config.get("flow", {})
-    cmaes = config.get("cmaes", {})
+    de = config.get("de", {})
     motion_min, erode = flow.get("motion_min", 0.25), int(flow.get("erode", 5))
     return {
         "TV-L1 flow + rigid fit": lambda frames, seed: baselines.optical_flow_rotation(
@@ -190,14 +191,16 @@ def _methods(config, settings):
             frames, method="ilk", motion_min=motion_min, erode=erode),
         "direct least squares": lambda frames, seed: baselines.direct_least_squares(
             frames, sigma=settings["sigma"], relative_threshold=settings["relative_threshold"]),
-        "CMA-ES on IRC residual": lambda frames, seed: baselines.cmaes_rotation(
+        "DE on IRC residual": lambda frames, seed: baselines.de_rotation(
             frames, seed=seed, sigma=settings["sigma"],
             relative_threshold=settings["relative_threshold"],
-            max_evals=int(cmaes.get("max_evals", 1500)), tau=float(cmaes.get("tau", 2.0))),
+            max_evals=int(de.get("max_evals", 2000)), pop_size=int(de.get("pop_size", 30)),
+            tau=float(de.get("tau", 2.0))),
     }
 
 
 PAPER, REFINED = "paper (best peak)", "paper + refinement"
+FAST = "coarse sweep + refinement"
 
 
 def _row(name, noise, method, estimate, seconds, truth):
@@ -218,6 +221,10 @@ def _one_case(name, noise, frames, truth, methods, chosen, settings, seed):
         if REFINED in chosen:
             rows.append(_row(name, noise, REFINED, found["refined"],
                              found["seconds"]["paper"] + found["seconds"]["refined"], truth))
+    if FAST in chosen:
+        fast = single.coarse_then_refined(frames, settings)
+        rows.append(_row(name, noise, FAST, fast["refined"], sum(fast["seconds"].values()),
+                         truth))
     for method in chosen:
         if method in methods:
             start = time.perf_counter()
@@ -258,6 +265,8 @@ def _summarise(rows, methods, noise_levels):
                 "centre_px_median": float(np.median(centre)),
                 "centre_px_max": float(np.max(centre)),
                 "omega_pct_median": float(np.median(omega)),
+                "omega_magnitude_pct_median": float(np.median(
+                    [r["omega_magnitude_pct"] for r in mine])),
                 "omega_pct_max": float(np.max(omega)),
                 "seconds_median": float(np.median(seconds)),
                 "goal_px": goal_px, "goal_pct": goal_pct,
@@ -266,47 +275,83 @@ def _summarise(rows, methods, noise_levels):
     return summary
 
 
+def _start_worker():
+    """Worker set-up: one numba thread (every method then runs on one core), warm kernels."""
+    import numba
+
+    numba.set_num_threads(1)
+    single.warm_up()
+
+
+def _case(args):
+    """All methods on one (sequence, noise level); runs in a worker process."""
+    from replication.motion.synth import degrade
+
+    config, settings, chosen, name, path, i, j, noise = args
+    sequence = read_sequence(path)
+    frames = degrade(sequence.frames, noise_sigma=noise / 255.0,
+                     rng=np.random.default_rng([config["seed"], i, j]))
+    return _one_case(name, noise, frames, _truth_of(sequence), _methods(config, settings),
+                     chosen, settings, config["seed"])
+
+
+def _run_cases(cases, workers):
+    """Results of :func:`_case` for every case, in order, on ``workers`` processes."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    if workers == 1:
+        import numba
+
+        threads = numba.get_num_threads()
+        _start_worker()
+        try:
+            yield from map(_case, cases)
+        finally:
+            numba.set_num_threads(threads)
+        return
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(workers, mp_context=context, initializer=_start_worker) as pool:
+        yield from pool.map(_case, cases)
+
+
 def accuracy(config, out):
     """The accuracy table: every method on every accuracy sequence at every noise level.
 
     Noise ``sigma = noise_255 / 255`` is added at run time from
-    ``default_rng([seed, sequence index, noise index])``; times are wall-clock seconds of
-    each method on each case, in the same process, one after another.
+    ``default_rng([seed, sequence index, noise index])``. Cases run on ``workers``
+    processes; each method of a case runs in the same process, one after another, on one
+    core (numba limited to one thread), and its wall-clock seconds are recorded.
     """
-    from replication.motion.synth import degrade
-
     settings = single.settings_from(config.get("method"))
     _check_settings(settings)
     noise_levels = [float(v) for v in config["noise_levels_255"]]
     check(len(noise_levels) > 0 and min(noise_levels) >= 0,
           f"noise_levels_255: {noise_levels}; expected a non-empty list of values >= 0")
-    methods = _methods(config, settings)
-    known = [PAPER, REFINED, *methods]
+    known = [PAPER, REFINED, FAST, *_methods(config, settings)]
     chosen = config.get("methods") or known
     unknown = [name for name in chosen if name not in known]
     check(not unknown, f"methods: unknown {unknown}; expected some of {known}")
+    workers = int(config.get("workers", 1))
+    check(workers >= 1, f"workers={workers}: expected at least 1 process")
     sequences = _accuracy_sequences(config)
     loaded = {name: read_sequence(item["path"]) for name, item in sequences.items()}
     for sequence in loaded.values():
         check(_truth_of(sequence) is not None,
               f"{sequence.source}: truth: missing; expected ground truth for the accuracy table")
-    # compile the numba kernels before timing anything
-    single.paper_method(next(iter(loaded.values())).frames[:, :64, :64], settings)
-    rows = []
-    for i, (name, sequence) in enumerate(loaded.items()):
-        for j, noise in enumerate(noise_levels):
-            frames = degrade(sequence.frames, noise_sigma=noise / 255.0,
-                             rng=np.random.default_rng([config["seed"], i, j]))
-            case = _one_case(name, noise, frames, _truth_of(sequence), methods, chosen,
-                             settings, config["seed"])
-            rows.extend(case)
-            progress(f"{name} noise {noise:g}/255: " + ", ".join(
-                f"{r['method']} {r['centre_px']:.2f}px {r['omega_pct']:+.1f}%" for r in case))
+    cases = [(config, settings, chosen, name, sequences[name]["path"], i, j, noise)
+             for i, name in enumerate(loaded) for j, noise in enumerate(noise_levels)]
+    rows, load_before = [], os.getloadavg()[0]
+    for case in _run_cases(cases, workers):
+        rows.extend(case)
+        progress(f"{case[0]['sequence']} noise {case[0]['noise_255']:g}/255: " + ", ".join(
+            f"{r['method']} {r['centre_px']:.2f}px {r['omega_pct']:+.1f}%" for r in case))
     truths = {name: _truth_of(s) for name, s in loaded.items()}
     return {"sequences": {name: {k: truths[name][k] for k in ("xi", "eta", "omega")}
                           for name in loaded},
-            "noise_levels_255": noise_levels, "methods": chosen, "rows": rows,
-            "summary": _summarise(rows, chosen, noise_levels)}
+            "noise_levels_255": noise_levels, "methods": chosen, "workers": workers,
+            "load_average_1min": {"start": load_before, "end": os.getloadavg()[0]},
+            "rows": rows, "summary": _summarise(rows, chosen, noise_levels)}
 
 
 def _median_time(function, repeats):

@@ -65,11 +65,12 @@ _FIXED_BITS = 20  # fixed-point fraction bits of the line walk (error < 256 / 2*
 
 
 @numba.njit(cache=True, nogil=True)
-def _walk(acc, start, slope, n_steps, n_cells):
-    """Vote in ``acc[step, floor(start + step * slope)]`` for every step inside the grid.
+def _walk(flat, start, slope, n_steps, n_cells):
+    """Vote in cell ``(step, floor(start + step * slope))`` for every step inside the grid.
 
-    ``acc`` is indexed (step, cell) so that consecutive votes touch consecutive memory.
-    Returns the number of votes.
+    ``flat`` is a C-ordered ``(n_steps, n_cells)`` accumulator, flattened, so that
+    consecutive votes touch nearby memory; unsigned offsets spare numba's negative-index
+    wrap-around. Returns the number of votes.
     """
     low, high = _span(start, slope, n_steps, n_cells)
     if high <= low:
@@ -77,13 +78,16 @@ def _walk(acc, start, slope, n_steps, n_cells):
     one = 1 << _FIXED_BITS
     increment = np.int64(slope * one)
     position = np.int64(math.floor((start + low * slope) * one))
+    row = np.uint64(low * n_cells)
+    stride = np.uint64(n_cells)
     votes = 0
-    for step in range(low, high):
+    for _ in range(low, high):
         cell = position >> _FIXED_BITS
         if 0 <= cell < n_cells:
-            acc[step, cell] += 1
+            flat[row + np.uint64(cell)] += 1
             votes += 1
         position += increment
+        row += stride
     return votes
 
 
@@ -91,10 +95,12 @@ def _walk(acc, start, slope, n_steps, n_cells):
 def _vote(acc, acc_t, x, y, gx, gy, gt, omega, x0, y0, cell):
     """Add one vote per column (or row) along each pixel's IRC line; return the vote count.
 
-    Shallow lines vote in ``acc`` (ny, nx) column by column, steep ones in the transposed
-    ``acc_t`` (nx, ny) row by row; the accumulation space is ``acc + acc_t.T``.
+    Steep lines vote in ``acc`` (ny, nx) row by row, shallow ones in the transposed
+    ``acc_t`` (nx, ny) column by column; the accumulation space is ``acc + acc_t.T``.
+    Both must be C-contiguous.
     """
     ny, nx = acc.shape
+    flat, flat_t = acc.ravel(), acc_t.ravel()
     votes = 0
     for k in range(x.size):
         g2 = gx[k] * gx[k] + gy[k] * gy[k]
@@ -104,10 +110,10 @@ def _vote(acc, acc_t, x, y, gx, gy, gt, omega, x0, y0, cell):
         cy = (y[k] + s * gx[k] - y0) / cell
         if abs(gx[k]) >= abs(gy[k]):
             slope = gy[k] / gx[k]
-            votes += _walk(acc_t, cy - cx * slope + 0.5, slope, nx, ny)
+            votes += _walk(flat_t, cy - cx * slope + 0.5, slope, nx, ny)
         else:
             slope = gx[k] / gy[k]
-            votes += _walk(acc, cx - cy * slope + 0.5, slope, ny, nx)
+            votes += _walk(flat, cx - cy * slope + 0.5, slope, ny, nx)
     return votes
 
 
@@ -199,14 +205,24 @@ def paper_estimate(table):
 
 
 def omega_sweep(low, high, count):
-    """``count`` values of ``omega`` evenly spread over ``[low, high]``, 0 excluded.
+    """About ``count`` values of ``omega`` evenly spread over ``[low, high]``, 0 excluded.
 
-    ``count + 1`` evenly spaced values are made and 0 removed when it falls on the grid
-    (the paper's ``-0.05 .. 0.05`` with 100 values has a step of 0.001).
+    ``count + 1`` evenly spaced values are made and 0 removed when it falls on that grid
+    (the paper's ``-0.05 .. 0.05`` with 100 values has a step of 0.001); otherwise
+    ``count`` evenly spaced values, less 0 if it is one of them (an odd ``count`` over a
+    symmetric range then gives ``count - 1`` values).
+
+    Returns
+    -------
+    omegas : (m,) ndarray, m = count or count - 1
     """
+    scale = max(abs(low), abs(high))
     values = np.linspace(low, high, count + 1)
-    nonzero = values[np.abs(values) > 1e-12 * max(abs(low), abs(high))]
-    return nonzero if nonzero.size == count else np.linspace(low, high, count)
+    zero = np.abs(values) <= 1e-12 * scale
+    if not zero.any():
+        values = np.linspace(low, high, count)
+        zero = np.abs(values) <= 1e-12 * scale
+    return values[~zero]
 
 
 def line_distance(pixels, xi, eta, omega):

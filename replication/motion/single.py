@@ -15,6 +15,7 @@ from replication.motion.derivatives import sequence_derivatives
 DEFAULTS = {
     "sigma": 1.5,                 # Gaussian pre-smoothing, pixels
     "relative_threshold": 0.3,    # gradient norm >= this x its 99th percentile
+    "refine_threshold": 0.15,     # the same inside the refinement's region
     "omega_min": -0.05,           # the paper's sweep, rad/frame
     "omega_max": 0.05,
     "omega_count": 100,           # 0 excluded
@@ -26,6 +27,8 @@ DEFAULTS = {
     "region_erode": None,         # erode the region before refining, pixels (None: 3 sigma)
     "tukey_c": 1.0,               # refinement: normal-flow residual scale, pixels/frame
     "rounds": 2,                  # refinement rounds (region re-detected between rounds)
+    "coarse_count": 24,           # fast variant: omega values of the coarse sweep
+    "coarse_cell": 2.0,           # fast variant: accumulator cell, pixels
 }
 
 
@@ -45,6 +48,12 @@ def settings_from(method):
     settings = dict(DEFAULTS)
     settings.update(method)
     return settings
+
+
+def warm_up():
+    """Compile (or load from numba's cache) the voting kernels before anything is timed."""
+    frames = np.random.default_rng(0).random((2, 48, 48))
+    paper_method(frames, settings_from({"omega_count": 4}))
 
 
 def paper_method(frames, settings):
@@ -116,7 +125,7 @@ def refined_method(frames, start, pixels, settings):
         current = irc.refine(frames, current["xi"], current["eta"], current["omega"],
                              erode(region, erosion),
                              sigma=settings["sigma"],
-                             relative_threshold=settings["relative_threshold"],
+                             relative_threshold=settings["refine_threshold"],
                              tukey_c=settings["tukey_c"])
         iterations += current["iterations"]
     return {"xi": current["xi"], "eta": current["eta"], "omega": current["omega"],
@@ -144,8 +153,39 @@ def find_rotation(frames, settings):
             "table": table, "pixels": pixels, "grid": grid, "region": region}
 
 
+def coarse_then_refined(frames, settings):
+    """The fast variant: a coarse sweep (``coarse_count`` values of omega, cells of
+    ``coarse_cell`` pixels) as the starting point of the same refinement.
+
+    The refinement corrects omega and the centre, so the start need only be close; the
+    coarse sweep casts about ``(100 / 24) x 2 x 2 = 8`` times fewer votes than the paper's.
+
+    Returns
+    -------
+    dict
+        ``coarse`` (its best peak), ``refined`` and ``seconds`` ({coarse, refined}).
+    """
+    coarse_settings = dict(settings, omega_count=settings["coarse_count"],
+                           cell=settings["coarse_cell"])
+    start = time.perf_counter()
+    coarse, _, pixels, _ = paper_method(frames, coarse_settings)
+    middle = time.perf_counter()
+    refined = refined_method(frames, coarse, pixels, settings)
+    end = time.perf_counter()
+    refined.pop("region")
+    return {"coarse": coarse, "refined": refined,
+            "seconds": {"coarse": middle - start, "refined": end - middle}}
+
+
 def errors(estimate, truth):
-    """Centre error (pixels) and omega error (% of the true omega)."""
+    """Centre error (pixels), omega error and |omega| error (% of the true |omega|).
+
+    ``omega_pct = 100 (omega - omega_true) / |omega_true|``;
+    ``omega_magnitude_pct = 100 (|omega| - |omega_true|) / |omega_true|`` (positive: the
+    rotation speed is overestimated, whatever its sign).
+    """
     centre = float(np.hypot(estimate["xi"] - truth["xi"], estimate["eta"] - truth["eta"]))
-    omega = float(100.0 * (estimate["omega"] - truth["omega"]) / abs(truth["omega"]))
-    return {"centre_px": centre, "omega_pct": omega}
+    scale = abs(truth["omega"])
+    omega = float(100.0 * (estimate["omega"] - truth["omega"]) / scale)
+    magnitude = float(100.0 * (abs(estimate["omega"]) - scale) / scale)
+    return {"centre_px": centre, "omega_pct": omega, "omega_magnitude_pct": magnitude}

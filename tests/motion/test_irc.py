@@ -97,7 +97,8 @@ def test_find_rotation_is_deterministic(small_sequence, fast_settings):
     assert first["refined"] == second["refined"]
 
 
-def test_cmaes_same_seed_same_result(small_sequence):
-    a = baselines.cmaes_rotation(small_sequence[0], seed=4, max_evals=200)
-    b = baselines.cmaes_rotation(small_sequence[0], seed=4, max_evals=200)
-    assert a == b
+def test_de_same_seed_same_result(small_sequence):
+    a = baselines.de_rotation(small_sequence[0], seed=4, max_evals=300)
+    b = baselines.de_rotation(small_sequence[0], seed=4, max_evals=300)
+    c = baselines.de_rotation(small_sequence[0], seed=5, max_evals=300)
+    assert a == b and a != c

@@ -106,6 +106,8 @@ def test_structured_identifier_finds_the_truth_without_meta(trajectory):
     best, cost, info = identify(blind, rng=0, budget=1000, settings=settings)
     truth = problem.truth_vector(trajectory)
     assert problem.is_success(best, truth, 1e-6) and info["n_evals"] <= 1000
+    again, cost_again, info_again = identify(blind, rng=0, budget=1000, settings=settings)
+    assert again.tolist() == best.tolist() and info_again["trace"] == info["trace"]
 
 
 def test_bounds_low_not_below_high_are_refused(trajectory):

@@ -208,7 +208,7 @@ def segment_sequence(config, out):
     return result
 
 
-METHODS = ("pipeline", "faithful", "nichega", "flow")
+METHODS = ("pipeline", "faithful", "refined", "nichega", "flow")
 
 
 def _study_sequences(config):
@@ -231,8 +231,9 @@ def _study_sequences(config):
 
 def _run_method(method, frames, settings, flow_settings, rng):
     """Objects found by one method: ``pipeline`` (the configured settings), ``faithful``
-    (the same with every addition to the paper switched off), ``nichega`` (pymoo's
-    niching GA instead of the paper's EA) or ``flow`` (TV-L1 + sequential RANSAC)."""
+    (the same with every addition to the paper switched off), ``refined`` (the pipeline
+    then ``irc.refine`` of each object's rotation), ``nichega`` (pymoo's niching GA instead
+    of the paper's EA) or ``flow`` (TV-L1 + sequential RANSAC)."""
     from replication.motion import segment_baselines, segmentation
 
     if method == "flow":
@@ -241,6 +242,8 @@ def _run_method(method, frames, settings, flow_settings, rng):
     if method == "faithful":
         chosen = {**chosen, **{group: {**settings[group], **values}
                                for group, values in segmentation.FAITHFUL.items()}}
+    if method == "refined":
+        chosen["accumulation"] = {**settings["accumulation"], "refine": True}
     return segmentation.segment(frames, chosen, rng)["objects"]
 
 

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from replication.cloth import identify_problem as problem
 from replication.errors import InputError, check
 from replication.optim.objective import BudgetExhausted
 
@@ -198,6 +199,15 @@ class PaperEA:
         return self
 
 
+DEFAULT_BOUNDS = {"rest": [0.8, 1.2], "K": [0.1, 10.0], "tau": [0.01, 1.0]}
+DEFAULT_STRUCTURED = {
+    "regression": {"first": 1, "stride": 5, "trim_rounds": 6, "trim_factor": 10.0,
+                   "frame_quantile": 0.3, "smooth_windows": [0, 31]},
+    "tau_scan": {"n_grid": 100, "refine_evals": 40},
+    "refine": {"box": 0.02, "ea": {"pop_size": 20, "generations": 10}},
+}
+
+
 def identify(trajectory, *, model="5", rng=None, budget=None, method="structured",
              cost=None, bounds=None, settings=None):
     """Identify the cloth parameters of any trajectory (the entry point for other code).
@@ -228,7 +238,7 @@ def identify(trajectory, *, model="5", rng=None, budget=None, method="structured
     info : dict
         ``n_evals``, ``population`` (paper EA, best first), method details.
     """
-    from replication.cloth import identify_problem as problem
+    # imported here: the structured identifier builds on this module (EASettings, PaperEA)
     from replication.cloth.identify_structured import structured_identify
 
     rng = np.random.default_rng(rng)
@@ -256,11 +266,3 @@ def identify(trajectory, *, model="5", rng=None, budget=None, method="structured
         best = objective.best_point
     return np.asarray(best, float), float(objective.best_value), info
 
-
-DEFAULT_BOUNDS = {"rest": [0.8, 1.2], "K": [0.1, 10.0], "tau": [0.01, 1.0]}
-DEFAULT_STRUCTURED = {
-    "regression": {"first": 1, "stride": 5, "trim_rounds": 6, "trim_factor": 10.0,
-                   "frame_quantile": 0.3, "smooth_windows": [0, 31]},
-    "tau_scan": {"n_grid": 100, "refine_evals": 40},
-    "refine": {"box": 0.02, "ea": {"pop_size": 20, "generations": 10}},
-}

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from replication.cloth.costs import make_cost
+from replication.cloth.costs import ClothCost, make_cost
 from replication.cloth.mesh import FAMILY_OF_TYPE, N_TYPES, springs
 from replication.cloth.model import PARAM_NAMES_5, PARAM_NAMES_18, params_from_vectors, step
 from replication.errors import InputError, check
@@ -113,7 +113,6 @@ def cost_from_config(trajectory, cost_cfg):
     list ``cost_cfg.frames``) on ``trajectory``."""
     kind = cost_cfg.get("kind", "small")
     if kind == "frames":
-        from replication.cloth.costs import ClothCost
         frames = np.asarray(cost_cfg["frames"], dtype=np.int64)
         check(frames.size > 0, "cost.frames: expected at least one frame index")
         if frames.min() < 0 or frames.max() > trajectory.n_frames - 2:

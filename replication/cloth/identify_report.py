@@ -315,7 +315,14 @@ def noise_section(result):
     lines += ["", "The paper says EAs cope with noisy data (section 1) but shows no noise "
               "study; positions with noise make the one-step velocity differences noisy by "
               "sd/dt, which both the cost and the regression see."]
-    return Section("\n".join(lines), [])
+    rows = []
+    for method in dict.fromkeys(row["method"] for row in result["rows"]):
+        cells = [f"{fmt(row['noise_level'])} h: {fmt(100 * row['success_rate'], 3)}%"
+                 for row in result["rows"] if row["method"] == method]
+        rows.append(SummaryRow(f"noise study, {method}: success within "
+                               f"{fmt(100 * cfg['success_rtol'])}% (beyond the paper)", "n/a",
+                               ", ".join(cells), "report", "beyond the paper"))
+    return Section("\n".join(lines), rows)
 
 
 def bench_section(result):

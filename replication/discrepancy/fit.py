@@ -23,6 +23,7 @@ from replication.cloth.costs import ClothCost, structural_length
 from replication.cloth.model import ClothParams, step
 from replication.discrepancy import effects as fx
 from replication.discrepancy.geometry import MeshOperators
+from replication.errors import InputError
 
 LAG_BEFORE = 2
 LAG_AFTER = 3
@@ -337,13 +338,20 @@ def fit_model(data, frames, effect_names=(), *, model="5", base=None, rounds=2, 
         G, hz, labels = cluster_sums(columns, data.target, frames, mask, block=block)
         theta, cov = iv_solve(G, hz, labels=labels)
         nb = n_base(model)
+        if not (np.all(np.isfinite(theta)) and np.all(theta[:nb] > 0)):
+            break  # constraint mask left too little data: keep the best round so far
         terms = [(name, theta[slices[name]]) for name in effect_names]
         base = base_from_theta(theta[:nb], model, base.tau)
         tau = search_tau(data, base, terms, frames)
         base = BaseModel(base.rest, base.k, np.full(6, tau))
         score = _structure_score(data, base, terms, frames)
-        if best is None or score < best[0]:
+        if best is None or score < best[0] or not np.isfinite(best[0]):
             best = (score, Fit(base, terms, theta, cov, mask))
+    if best is None:
+        raise InputError(f"{data.trajectory.source}: field 'positions': the base model could "
+                         "not be fitted (no particle-frames left outside the deformation "
+                         "constraint); expected a cloth trajectory as in "
+                         "shared/spec/cloth-model.md")
     return best[1]
 
 
@@ -373,6 +381,19 @@ def _plausible(rest, typical, *, low=PLAUSIBLE_REST[0], high=PLAUSIBLE_REST[1]):
     of tiny rest lengths, soft springs and large ``tau`` (shared/NOTES.md)."""
     ratio = np.asarray(rest) / typical
     return bool(np.all((ratio >= low) & (ratio <= high)))
+
+
+def spread_runs(frames, total, *, run=10):
+    """About ``total`` frames in runs of ``run`` consecutive frames spread evenly over
+    ``frames`` (the structure statistic needs consecutive frames; spreading them keeps the
+    late, constrained part of a trajectory in the score)."""
+    frames = np.asarray(frames)
+    if frames.size <= total:
+        return frames
+    n_runs = max(total // run, 1)
+    starts = np.linspace(0, frames.size - run, n_runs).round().astype(int)
+    chosen = np.unique(np.concatenate([frames[s:s + run] for s in starts]))
+    return chosen
 
 
 def _structure_score(data, base, terms, frames):
@@ -407,7 +428,7 @@ def initial_base(data, frames, *, model="5", block=5, taus=None, inner=3, max_fr
     rest0 = typical
     following = data.x[frames + 1]
     lengths = np.linalg.norm(following[:, data.ops.b] - following[:, data.ops.a], axis=2)
-    score_frames = frames[:max_score_frames]
+    score_frames = spread_runs(frames, max_score_frames)
     cost_frames = frames if len(frames) <= max_frames else \
         frames[np.linspace(0, len(frames) - 1, max_frames).round().astype(int)]
     cost = ClothCost(data.trajectory, cost_frames, h=data.h)

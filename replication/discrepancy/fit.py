@@ -463,6 +463,7 @@ def initial_base(data, frames, *, model="5", block=5, taus=None, inner=3, max_fr
         if best is None or score < best[0]:
             best = (score, candidate)
     if best is None:
-        raise ValueError("initial_base: no tau of the grid gave positive stiffness and rest "
-                         "lengths; the data does not look like the cloth model")
+        raise InputError(f"{data.trajectory.source}: field 'positions': no start of the base "
+                         "model has positive stiffness and plausible rest lengths; expected a "
+                         "cloth trajectory as in shared/spec/cloth-model.md")
     return best[1]

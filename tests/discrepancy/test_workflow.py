@@ -124,3 +124,13 @@ def test_generator_is_deterministic():
     assert np.array_equal(first, second)
     assert spec == gen.draw_spec(np.random.default_rng(5), effects=["body_force"],
                                  noise_range=(1e-4, 1e-4))
+
+
+def test_refuses_data_that_is_not_a_cloth(tmp_path, clean_trajectory):
+    rng = np.random.default_rng(0)
+    noise = clean_trajectory.__class__(**{**clean_trajectory.__dict__,
+                                          "positions": rng.normal(size=(N_FRAMES, 17, 17, 3))})
+    path = tmp_path / "noise.npz"
+    write_trajectory(path, noise)
+    with pytest.raises(InputError, match=r"noise.npz: field 'positions': .*expected a cloth"):
+        discrepancy(_config(path, tmp_path), tmp_path)

@@ -201,6 +201,7 @@ def _methods(config, settings):
 
 PAPER, REFINED = "paper (best peak)", "paper + refinement"
 FAST = "coarse sweep + refinement"
+TVL1, ORACLE = "TV-L1 flow + rigid fit", "TV-L1 flow + fit on the true mask (oracle)"
 
 
 def _row(name, noise, method, estimate, seconds, truth):
@@ -210,8 +211,18 @@ def _row(name, noise, method, estimate, seconds, truth):
     return row
 
 
-def _one_case(name, noise, frames, truth, methods, chosen, settings, seed):
+def _oracle_row(name, noise, estimate, seconds, truth, labels, erode):
+    """TV-L1's flow fitted on the true object mask (eroded like the others): how much of
+    the flow method's error is the flow's own, not the segmentation's."""
+    start = time.perf_counter()
+    mask = single.erode(labels[0] > 0, erode)
+    fit = baselines.rigid_fit(estimate["flow"][0], estimate["flow"][1], mask)
+    return _row(name, noise, ORACLE, fit, seconds + time.perf_counter() - start, truth)
+
+
+def _one_case(name, noise, frames, truth, labels, methods, chosen, settings, config):
     """Rows of every chosen method on one noisy sequence."""
+    seed = config["seed"]
     rows = []
     if PAPER in chosen or REFINED in chosen:
         found = single.find_rotation(frames, settings)
@@ -229,7 +240,11 @@ def _one_case(name, noise, frames, truth, methods, chosen, settings, seed):
         if method in methods:
             start = time.perf_counter()
             estimate = methods[method](frames, seed)
-            rows.append(_row(name, noise, method, estimate, time.perf_counter() - start, truth))
+            seconds = time.perf_counter() - start
+            rows.append(_row(name, noise, method, estimate, seconds, truth))
+            if method == TVL1 and ORACLE in chosen and labels is not None:
+                rows.append(_oracle_row(name, noise, estimate, seconds, truth, labels,
+                                        int(config.get("flow", {}).get("erode", 5))))
     return rows
 
 
@@ -254,6 +269,8 @@ def _summarise(rows, methods, noise_levels):
     for method in methods:
         for noise in noise_levels:
             mine = [r for r in rows if r["method"] == method and r["noise_255"] == noise]
+            if not mine:
+                continue
             centre = np.array([r["centre_px"] for r in mine], dtype=float)
             omega = np.abs(np.array([r["omega_pct"] for r in mine], dtype=float))
             seconds = np.array([r["seconds"] for r in mine], dtype=float)
@@ -291,8 +308,8 @@ def _case(args):
     sequence = read_sequence(path)
     frames = degrade(sequence.frames, noise_sigma=noise / 255.0,
                      rng=np.random.default_rng([config["seed"], i, j]))
-    return _one_case(name, noise, frames, _truth_of(sequence), _methods(config, settings),
-                     chosen, settings, config["seed"])
+    return _one_case(name, noise, frames, _truth_of(sequence), sequence.labels,
+                     _methods(config, settings), chosen, settings, config)
 
 
 def _run_cases(cases, workers):
@@ -328,7 +345,7 @@ def accuracy(config, out):
     noise_levels = [float(v) for v in config["noise_levels_255"]]
     check(len(noise_levels) > 0 and min(noise_levels) >= 0,
           f"noise_levels_255: {noise_levels}; expected a non-empty list of values >= 0")
-    known = [PAPER, REFINED, FAST, *_methods(config, settings)]
+    known = [PAPER, REFINED, FAST, *_methods(config, settings), ORACLE]
     chosen = config.get("methods") or known
     unknown = [name for name in chosen if name not in known]
     check(not unknown, f"methods: unknown {unknown}; expected some of {known}")
@@ -354,13 +371,15 @@ def accuracy(config, out):
             "rows": rows, "summary": _summarise(rows, chosen, noise_levels)}
 
 
-def _median_time(function, repeats):
+def _best_time(function, repeats):
+    """Shortest wall-clock time of ``repeats`` calls (the least disturbed run, as
+    ``timeit`` recommends on a shared machine)."""
     times = []
     for _ in range(repeats):
         start = time.perf_counter()
         function()
         times.append(time.perf_counter() - start)
-    return float(np.median(times))
+    return float(np.min(times))
 
 
 def benchmark(config, out):
@@ -368,8 +387,8 @@ def benchmark(config, out):
 
     Both vote with the same pixels (those above the gradient threshold in the first frame
     pair); Hough casts one vote per pixel and angle (``n_angles`` angles), the accumulation
-    one per accumulator column or row per pixel and omega. Medians of ``repeats`` runs after
-    a warm-up.
+    one per accumulator column or row per pixel and omega. Best of ``repeats`` runs after a
+    warm-up, for both.
     """
     import numba
     from skimage.transform import hough_line
@@ -391,11 +410,11 @@ def benchmark(config, out):
                              int(settings["omega_count"]))
     irc.sweep(pixels, omegas, grid)
     threads = numba.get_num_threads()
-    sweep_s = _median_time(lambda: irc.sweep(pixels, omegas, grid), repeats)
+    sweep_s = _best_time(lambda: irc.sweep(pixels, omegas, grid), repeats)
     votes = int(irc.sweep(pixels, omegas, grid)["votes"].sum())
     numba.set_num_threads(1)
     try:
-        sweep_1thread_s = _median_time(lambda: irc.sweep(pixels, omegas, grid), repeats)
+        sweep_1thread_s = _best_time(lambda: irc.sweep(pixels, omegas, grid), repeats)
     finally:
         numba.set_num_threads(threads)
     edges = np.zeros(frames.shape[1:], dtype=bool)
@@ -403,9 +422,9 @@ def benchmark(config, out):
     angles = np.linspace(-np.pi / 2, np.pi / 2, int(config.get("n_angles", 180)),
                          endpoint=False)
     hough_line(edges, angles)
-    hough_s = _median_time(lambda: hough_line(edges, angles), repeats)
+    hough_s = _best_time(lambda: hough_line(edges, angles), repeats)
     hough_votes = int(np.count_nonzero(edges)) * angles.size
-    derivatives_s = _median_time(derive, repeats)
+    derivatives_s = _best_time(derive, repeats)
     found = single.find_rotation(sequence.frames, settings)
     voting = votes / sweep_s
     hough = hough_votes / hough_s

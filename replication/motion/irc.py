@@ -65,30 +65,50 @@ _FIXED_BITS = 20  # fixed-point fraction bits of the line walk (error < 256 / 2*
 
 
 @numba.njit(cache=True, nogil=True)
+def _steps_inside(position, increment, n, limit):
+    """Steps ``k`` in ``[0, n)`` with ``0 <= position + k increment < limit`` (integers)."""
+    k_lo, k_hi = 0, n
+    if increment > 0:
+        if position < 0:
+            k_lo = (-position + increment - 1) // increment
+        if position + (n - 1) * increment >= limit:
+            k_hi = min(n, (limit - 1 - position) // increment + 1)
+    elif increment < 0:
+        if position >= limit:
+            k_lo = (position - limit) // (-increment) + 1
+        if position + (n - 1) * increment < 0:
+            k_hi = min(n, position // (-increment) + 1)
+    elif position < 0 or position >= limit:
+        return 0, 0
+    return k_lo, k_hi
+
+
+@numba.njit(cache=True, nogil=True)
 def _walk(flat, start, slope, n_steps, n_cells):
     """Vote in cell ``(step, floor(start + step * slope))`` for every step inside the grid.
 
     ``flat`` is a C-ordered ``(n_steps, n_cells)`` accumulator, flattened, so that
-    consecutive votes touch nearby memory; unsigned offsets spare numba's negative-index
-    wrap-around. Returns the number of votes.
+    consecutive votes touch nearby memory. The walk is in fixed point and its range is
+    solved exactly beforehand, so the loop has no bounds test; unsigned offsets spare
+    numba's negative-index wrap-around. Returns the number of votes.
     """
     low, high = _span(start, slope, n_steps, n_cells)
     if high <= low:
         return 0
-    one = 1 << _FIXED_BITS
-    increment = np.int64(slope * one)
-    position = np.int64(math.floor((start + low * slope) * one))
-    row = np.uint64(low * n_cells)
+    increment = np.int64(slope * (1 << _FIXED_BITS))
+    position = np.int64(math.floor((start + low * slope) * (1 << _FIXED_BITS)))
+    k_lo, k_hi = _steps_inside(position, increment, high - low,
+                               np.int64(n_cells) << _FIXED_BITS)
+    if k_hi <= k_lo:
+        return 0
+    position += k_lo * increment
+    row = np.uint64((low + k_lo) * n_cells)
     stride = np.uint64(n_cells)
-    votes = 0
-    for _ in range(low, high):
-        cell = position >> _FIXED_BITS
-        if 0 <= cell < n_cells:
-            flat[row + np.uint64(cell)] += 1
-            votes += 1
+    for _ in range(k_lo, k_hi):
+        flat[row + np.uint64(position >> _FIXED_BITS)] += 1
         position += increment
         row += stride
-    return votes
+    return k_hi - k_lo
 
 
 @numba.njit(cache=True, nogil=True)

@@ -102,3 +102,19 @@ def test_de_same_seed_same_result(small_sequence):
     b = baselines.de_rotation(small_sequence[0], seed=4, max_evals=300)
     c = baselines.de_rotation(small_sequence[0], seed=5, max_evals=300)
     assert a == b and a != c
+
+
+def test_line_walk_matches_a_plain_loop():
+    rng = np.random.default_rng(2)
+    for _ in range(300):
+        start, slope = rng.uniform(-40, 60), rng.uniform(-1, 1)
+        flat = np.zeros(32 * 20, dtype=np.int32)
+        votes = irc._walk(flat, start, slope, 32, 20)
+        expected = np.zeros((32, 20), dtype=np.int32)
+        for step in range(32):
+            cell = int(np.floor(start + step * slope))
+            if 0 <= cell < 20:
+                expected[step, cell] += 1
+        # fixed point may move a vote by one cell when a line grazes a cell border
+        assert abs(votes - expected.sum()) <= 1
+        assert np.abs(flat.reshape(32, 20) - expected).sum() <= 2

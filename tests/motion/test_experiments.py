@@ -1,0 +1,61 @@
+"""The data and accuracy runners: same config and seed, same numbers; bad settings refused."""
+
+import pytest
+
+from replication.errors import InputError
+from replication.motion.experiments import accuracy, make_data
+from replication.motion.report import accuracy_section, data_section
+
+from .conftest import small_spec
+
+
+def data_config(folder):
+    base = small_spec()
+    base.pop("center"), base.pop("omega")
+    return {"seed": 0, "data_dir": str(folder), "base": base, "sequences": {
+        "one": {"center": [30.0, 48.0], "omega": -0.03, "format": "npz"},
+        "two": {"center": [50.0, 48.0], "omega": 0.02, "format": "png16"},
+    }}
+
+
+def accuracy_config(folder):
+    return {"seed": 0, "data_dir": str(folder), "noise_levels_255": [2], "workers": 1,
+            "methods": ["paper (best peak)", "coarse sweep + refinement",
+                        "DE on IRC residual"],
+            "method": {"omega_count": 20}, "de": {"max_evals": 150}}
+
+
+def without_times(result):
+    return [{k: v for k, v in row.items() if k != "seconds"} for row in result["rows"]]
+
+
+def test_data_then_accuracy_are_deterministic(tmp_path):
+    first = make_data(data_config(tmp_path / "a"), tmp_path / "out")
+    second = make_data(data_config(tmp_path / "b"), tmp_path / "out")
+    assert first["files"] == second["files"]            # same sha256 for every file
+    assert "| `two` | accuracy | png16 |" in data_section(first).markdown
+    one = accuracy(accuracy_config(tmp_path / "a"), tmp_path / "out")
+    two = accuracy(accuracy_config(tmp_path / "a"), tmp_path / "out")
+    assert without_times(one) == without_times(two)
+    assert len(one["rows"]) == 2 * 3
+    assert "coarse sweep + refinement" in accuracy_section(one).markdown
+
+
+def test_accuracy_refuses_unknown_method(tmp_path):
+    make_data(data_config(tmp_path), tmp_path / "out")
+    config = dict(accuracy_config(tmp_path), methods=["magic"])
+    with pytest.raises(InputError, match=r"methods: unknown \['magic'\]"):
+        accuracy(config, tmp_path / "out")
+
+
+def test_accuracy_refuses_missing_manifest(tmp_path):
+    with pytest.raises(InputError, match="manifest.json: no such file"):
+        accuracy(accuracy_config(tmp_path), tmp_path / "out")
+
+
+def test_data_refuses_zero_omega(tmp_path):
+    config = data_config(tmp_path)
+    config["sequences"]["one"]["omega"] = 0
+    with pytest.raises(InputError, match="sequences.one.omega: 0; expected a non-zero"):
+        make_data(config, tmp_path / "out")
+    assert not (tmp_path / "manifest.json").exists()

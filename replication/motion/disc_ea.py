@@ -8,6 +8,8 @@ paper's normalised IRC residual over the disc's pixels plus ``beta R / (R + r)``
                                       * g_ref / |grad I|^2, cap)
               + beta * R / (R + r_i)
 
+where ``r_i`` counts only the disc's part inside the valid image (``sqrt(area / pi)``).
+
 Magnitude and normalisation (the paper's formula sums a signed term, which would let
 positive and negative residuals cancel):
 
@@ -37,7 +39,8 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from replication.motion.derivatives import gradient_threshold, pair_derivatives
+from replication.motion.derivatives import (default_border, gradient_threshold,
+                                            pair_derivatives)
 
 DEFAULTS = {
     "pop_size": 150,          # paper: 100 to 150 individuals
@@ -64,6 +67,7 @@ DEFAULTS = {
     "relative_threshold": 0.15,
     "motion_ratio": 0.7,      # rotating disc: rotation residual < this x static residual
     "motion_min": 0.1,        # ... and static normal flow above this, pixels/frame
+    "size_in_image": True,    # beta term: radius of the disc's part inside the image
     "project_fresh": False,   # true: fresh individuals are projected once (not in the paper)
     "reject_static": False,   # true: motionless discs get the worst cost (not in the paper)
 }
@@ -75,7 +79,7 @@ class DiscData:
 
     ``used`` marks pixels inside the valid border with a sufficient gradient; ``weight``
     is ``g_ref^(power - 1) / |grad I|^power`` there and 0 elsewhere; ``gnorm`` is
-    ``|grad I|``.
+    ``|grad I|``; ``border`` is the width of the invalid border, pixels.
     """
 
     gx: np.ndarray
@@ -84,6 +88,7 @@ class DiscData:
     gnorm: np.ndarray
     used: np.ndarray
     weight: np.ndarray
+    border: int = 0
 
     @property
     def shape(self):
@@ -114,7 +119,7 @@ def disc_data(frames, *, sigma=1.5, relative_threshold=0.15, power=2.0):
         weight[used] = reference ** (power - 1.0) / norm[used] ** power
         parts.append((gx, gy, gt, norm, used, weight))
     gx, gy, gt, gnorm, used, weight = (np.ascontiguousarray(np.stack(a)) for a in zip(*parts))
-    return DiscData(gx, gy, gt, gnorm, used, weight)
+    return DiscData(gx, gy, gt, gnorm, used, weight, default_border(sigma))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -134,22 +139,25 @@ def _row_span(row, x, y, r, width):
 
 
 @numba.njit(cache=True, nogil=True)
-def _disc_sums(pop, gx, gy, gt, gnorm, used, weight, cap, flow_cap):
+def _disc_sums(pop, gx, gy, gt, gnorm, used, weight, cap, flow_cap, border):
     """Per individual: sum of capped normalised residuals, pixel count, sums of the
-    normal-flow residual of the rotation and of the motionless hypothesis (px/frame).
+    normal-flow residual of the rotation and of the motionless hypothesis (px/frame), and
+    the number of the disc's pixels inside the valid image (``border`` pixels in).
 
     Serial on purpose: on this 2-core machine, shared with other jobs, numba's parallel
     loop ran 8 times slower than this one (oversubscribed threads)."""
     n = pop.shape[0]
     n_pairs, height, width = gx.shape
-    out = np.zeros((n, 4))
+    out = np.zeros((n, 5))
     for i in range(n):
         x, y, r, xi, eta, omega = pop[i, 0], pop[i, 1], pop[i, 2], pop[i, 3], pop[i, 4], pop[i, 5]
         inverse = 1.0 / omega
         row0, row1 = max(0, int(math.floor(y - r))), min(height - 1, int(math.ceil(y + r)))
-        total, count, rotation, static = 0.0, 0.0, 0.0, 0.0
+        total, count, rotation, static, inside = 0.0, 0.0, 0.0, 0.0, 0.0
         for row in range(row0, row1 + 1):
             col0, col1 = _row_span(row, x, y, r, width)
+            if border <= row <= height - 1 - border:
+                inside += max(0, min(col1, width - 1 - border) - max(col0, border) + 1)
             for p in range(n_pairs):
                 for col in range(col0, col1 + 1):
                     if not used[p, row, col]:
@@ -161,7 +169,8 @@ def _disc_sums(pop, gx, gy, gt, gnorm, used, weight, cap, flow_cap):
                     g = gnorm[p, row, col]
                     rotation += min(abs(omega * motion + temporal) / g, flow_cap)
                     static += min(abs(temporal) / g, flow_cap)
-        out[i, 0], out[i, 1], out[i, 2], out[i, 3] = total, count, rotation, static
+        out[i, 0], out[i, 1], out[i, 2], out[i, 3], out[i, 4] = (total, count, rotation,
+                                                                 static, inside)
     return out
 
 
@@ -182,16 +191,18 @@ def disc_statistics(pop, data, *, cap=30.0, flow_cap=3.0):
     -------
     dict of (N,) ndarrays
         ``residual`` (mean capped normalised residual, pixels), ``pixels`` (count),
+        ``inside_radius`` (``sqrt(area / pi)`` of the disc's part inside the valid image),
         ``rotation_flow`` and ``static_flow`` (mean normal-flow residual of the rotation and
         of no motion at all, pixels/frame; NaN for empty discs).
     """
     pop = np.ascontiguousarray(pop, dtype=np.float64)
     sums = _disc_sums(pop, data.gx, data.gy, data.gt, data.gnorm, data.used, data.weight,
-                      float(cap), float(flow_cap))
+                      float(cap), float(flow_cap), int(data.border))
     count = sums[:, 1]
     safe = np.maximum(count, 1.0)
     empty = count == 0
     return {"residual": np.where(empty, cap, sums[:, 0] / safe), "pixels": count,
+            "inside_radius": np.sqrt(sums[:, 4] / np.pi),
             "rotation_flow": np.where(empty, np.nan, sums[:, 2] / safe),
             "static_flow": np.where(empty, np.nan, sums[:, 3] / safe)}
 
@@ -208,7 +219,10 @@ def disc_cost(pop, data, settings):
     residual = np.where(stats["pixels"] < settings["min_pixels"], settings["cap"],
                         stats["residual"])
     R = settings["R"]
-    cost = settings["alpha"] * residual + settings["beta"] * R / (R + pop[:, 2])
+    # the size advantage counts the disc's part inside the image: a disc centred off the
+    # image would otherwise win it with a few pixels
+    r = stats["inside_radius"] if settings.get("size_in_image", True) else pop[:, 2]
+    cost = settings["alpha"] * residual + settings["beta"] * R / (R + r)
     if settings.get("reject_static", False):
         worst = settings["alpha"] * settings["cap"] + settings["beta"]
         cost = np.where(_is_rotating(stats, settings), cost, worst)

@@ -2,7 +2,8 @@
 
 - :func:`nichega_discs`: pymoo's niching GA (``NicheGA``) on the same disc cost as the
   paper's EA (:func:`replication.motion.disc_ea.disc_cost`), same population and number of
-  generations; the rest of the pipeline is unchanged.
+  cost evaluations (pymoo may overshoot by part of a generation; the count is returned);
+  the rest of the pipeline is unchanged.
 - :func:`flow_ransac_segment`: a classical pipeline without the IRC equation: TV-L1 optical
   flow, then sequential RANSAC of rigid motions on the moving pixels.
 """
@@ -63,8 +64,9 @@ def nichega_discs(data, ea_settings, nichega_settings, rng):
     algorithm = NicheGA(pop_size=int(settings["pop_size"]),
                         norm_niche_size=float(options["norm_niche_size"]))
     seed = int(rng.integers(2**31 - 1))
-    result = minimize(_DiscProblem(), algorithm, ("n_gen", int(settings["generations"]) + 1),
-                      seed=seed, verbose=False)
+    # the paper's EA's budget: the first population, then the non-kept 80% each generation
+    budget = template.n + (template.n - template.n_keep) * int(settings["generations"])
+    result = minimize(_DiscProblem(), algorithm, ("n_eval", budget), seed=seed, verbose=False)
     pop = template._repair(result.pop.get("X").astype(float))
     cost = result.pop.get("F")[:, 0]
     order = np.lexsort((np.arange(cost.size), cost))

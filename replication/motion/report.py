@@ -41,10 +41,21 @@ def data_section(result):
 def single_section(result):
     """Figs. 1-4, the paper's estimate and the refined one on the paper-like sequence."""
     paper, refined = result["irc"], result["irc_refined"]
+    method = result.get("config", {}).get("method", {})
     lines = [
-        f"Sequence `{result['data']}`. Settings: see `method` in the config. The paper's "
-        "sequence is not available; the paper-like synthetic one has the paper's centre "
-        "(69, 140) and omega (-0.023 rad/frame), 8-bit frames and 1/255 noise.",
+        f"Sequence `{result['data']}`. The paper's sequence is not available; the paper-like "
+        "synthetic one has the paper's centre (69, 140) and omega (-0.023 rad/frame), 8-bit "
+        "frames and 1/255 noise.",
+        "",
+        "Conventions: `x` is the column, `y` the row; `Ix`, `Iy` are central differences "
+        "(per pixel) of the average of both frames after a Gaussian of "
+        f"sigma = {method.get('sigma', '?')} px, `It` the difference of the smoothed frames "
+        "(per frame); scikit-image's `sobel` would be twice these. Pixels vote when "
+        f"|grad I| >= {method.get('relative_threshold', '?')} x its 99th percentile. "
+        f"{len(result['sweep']['omega'])} values of omega from "
+        f"{fmt(method.get('omega_min', min(result['sweep']['omega'])))} to "
+        f"{fmt(method.get('omega_max', max(result['sweep']['omega'])))}, 0 excluded; one "
+        "vote per accumulator column (or row, for steep lines) along each pixel's line.",
         "",
         "| | xi | eta | omega (rad/frame) | centre error (px) | omega error (%) |",
         "|---|---|---|---|---|---|",

@@ -1,5 +1,7 @@
 """The data and accuracy runners: same config and seed, same numbers; bad settings refused."""
 
+import re
+
 import pytest
 
 from replication.errors import InputError
@@ -59,3 +61,19 @@ def test_data_refuses_zero_omega(tmp_path):
     with pytest.raises(InputError, match="sequences.one.omega: 0; expected a non-zero"):
         make_data(config, tmp_path / "out")
     assert not (tmp_path / "manifest.json").exists()
+
+
+@pytest.mark.parametrize("method, message", [
+    ({"omega_min": 0.05, "omega_max": -0.05}, "expected omega_min < omega_max"),
+    ({"omega_count": 1}, "omega_count=1: expected at least 2 values"),
+    ({"sigma": -1}, "sigma=-1: expected >= 0 pixels"),
+    ({"relative_threshold": 1.5}, "relative_threshold=1.5: expected a fraction in (0, 1)"),
+    ({"cell": 0}, "cell=0: expected > 0 pixels"),
+])
+def test_single_rotation_refuses_bad_settings(tmp_path, method, message):
+    from replication.motion.experiments import single_rotation
+
+    config = {"seed": 0, "data": {"path": str(tmp_path / "never_read.npz")}, "method": method}
+    with pytest.raises(InputError, match=re.escape(message)):
+        single_rotation(config, tmp_path / "out")
+    assert not (tmp_path / "out").exists()

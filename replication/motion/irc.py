@@ -49,7 +49,9 @@ def image_grid(shape, *, margin=0.0, cell=1.0):
 
 @numba.njit(cache=True, nogil=True)
 def _span(start, slope, n_steps, n_cells):
-    """Steps ``k`` in ``[0, n_steps)`` with ``0 <= floor(start + k slope) < n_cells``."""
+    """A range of steps ``[low, high)`` within ``[0, n_steps)`` that holds every step ``k``
+    with ``0 <= floor(start + k slope) < n_cells`` (one step wider each side, for safety);
+    :func:`_steps_inside` then solves the exact range in fixed point."""
     if slope == 0.0:
         if 0.0 <= start < n_cells:
             return 0, n_steps

@@ -34,7 +34,9 @@ def data_section(result):
             f"{fmt(item['eta'])} | {fmt(item['omega'])} | {item['n_frames']} | "
             f"{item['object_texture']} / {item['background_texture']} | "
             f"{fmt(noise * 255, 3)}/255 | {item.get('bits') or 'float'} |")
-    lines += ["", f"{len(result['files'])} files in `{result['data_dir']}`."]
+    lines += ["", f"{len(result['files'])} files in `{result['data_dir']}`. The accuracy "
+              "sequences are stored noise-free (16-bit PNG or float32 .npz); "
+              "`motion_accuracy` adds the noise at run time from its seed."]
     return Section("\n".join(lines))
 
 

@@ -140,24 +140,30 @@ def _vote(acc, acc_t, x, y, gx, gy, gt, omega, x0, y0, cell):
 
 
 @numba.njit(cache=True, parallel=True)
-def _sweep(x, y, gx, gy, gt, omegas, x0, y0, cell, ny, nx):
+def _sweep(x, y, gx, gy, gt, omegas, x0, y0, cell, ny, nx, template):
     n = omegas.size
     peak = np.zeros(n, dtype=np.int64)
     where = np.zeros(n, dtype=np.int64)
     votes = np.zeros(n, dtype=np.int64)
     for m in numba.prange(n):
-        acc = np.zeros((ny, nx), dtype=np.int32)
-        acc_t = np.zeros((nx, ny), dtype=np.int32)
+        acc = np.zeros((ny, nx), dtype=template.dtype)
+        acc_t = np.zeros((nx, ny), dtype=template.dtype)
         votes[m] = _vote(acc, acc_t, x, y, gx, gy, gt, omegas[m], x0, y0, cell)
         best, best_j, best_i = -1, 0, 0
         for j in range(ny):
             for i in range(nx):
-                value = acc[j, i] + acc_t[i, j]
+                value = np.int64(acc[j, i]) + np.int64(acc_t[i, j])
                 if value > best:
                     best, best_j, best_i = value, j, i
         peak[m] = best
         where[m] = best_j * nx + best_i
     return peak, where, votes
+
+
+def _counter_dtype(n_pixels):
+    """int16 counters when they cannot overflow (a line votes at most once per cell, so a
+    cell holds at most ``n_pixels`` votes), else int32: half the memory traffic."""
+    return np.int16 if n_pixels <= np.iinfo(np.int16).max else np.int32
 
 
 def _as_arrays(pixels):
@@ -186,10 +192,11 @@ def accumulate(pixels, omega, grid):
     """
     if omega == 0:
         raise ValueError("omega=0: the IRC lines are undefined for omega = 0; use omega != 0")
-    acc = np.zeros((grid.ny, grid.nx), dtype=np.int32)
-    acc_t = np.zeros((grid.nx, grid.ny), dtype=np.int32)
+    dtype = _counter_dtype(len(pixels))
+    acc = np.zeros((grid.ny, grid.nx), dtype=dtype)
+    acc_t = np.zeros((grid.nx, grid.ny), dtype=dtype)
     _vote(acc, acc_t, *_as_arrays(pixels), float(omega), grid.x0, grid.y0, grid.cell)
-    return acc + acc_t.T
+    return acc.astype(np.int32) + acc_t.T
 
 
 def sweep(pixels, omegas, grid):
@@ -211,8 +218,9 @@ def sweep(pixels, omegas, grid):
     omegas = np.ascontiguousarray(omegas, dtype=np.float64)
     if np.any(omegas == 0):
         raise ValueError("omegas: contains 0; the paper's sweep excludes omega = 0")
+    template = np.zeros(1, dtype=_counter_dtype(len(pixels)))
     peak, where, votes = _sweep(*_as_arrays(pixels), omegas, grid.x0, grid.y0, grid.cell,
-                                grid.ny, grid.nx)
+                                grid.ny, grid.nx, template)
     j, i = np.divmod(where, grid.nx)
     xi, eta = grid.centre(j, i)
     return {"omega": omegas, "xi": np.asarray(xi, dtype=float),

@@ -118,3 +118,14 @@ def test_line_walk_matches_a_plain_loop():
         # fixed point may move a vote by one cell when a line grazes a cell border
         assert abs(votes - expected.sum()) <= 1
         assert np.abs(flat.reshape(32, 20) - expected).sum() <= 2
+
+
+def test_int16_and_int32_counters_agree():
+    pixels = exact_pixels(31.0, 22.0, 0.02, n=300)
+    grid = irc.image_grid((64, 64))
+    omegas = irc.omega_sweep(-0.05, 0.05, 20)
+    results = [irc._sweep(*irc._as_arrays(pixels), omegas, grid.x0, grid.y0, grid.cell,
+                          grid.ny, grid.nx, np.zeros(1, dtype=dtype))
+               for dtype in (np.int16, np.int32)]
+    for a, b in zip(*results):
+        assert np.array_equal(a, b)

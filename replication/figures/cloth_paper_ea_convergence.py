@@ -14,7 +14,7 @@ def plot(runs, *, out_name, figure_dir="figures"):
             color = "tab:green" if success else ("tab:red" if success is False else "tab:blue")
             ax.semilogy(range(len(record["history"])), record["history"], color=color,
                         alpha=0.6, lw=1)
-        ax.set_title(f"paper EA on {label} ({len(records)} seeds; green: truth within 1%)")
+        ax.set_title(f"paper EA, {label}: {len(records)} seeds (green: within 1%)", fontsize=10)
         ax.set_xlabel("generation")
         ax.set_ylabel("best cost")
     return save(fig, out_name, figure_dir)

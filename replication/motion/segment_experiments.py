@@ -229,19 +229,27 @@ def _study_sequences(config):
     return chosen
 
 
-def _run_method(method, frames, settings, flow_settings, rng):
+def _with(settings, overrides):
+    """``settings`` with some groups' values replaced, e.g. ``{"ea": {"keep": 0.1}}``."""
+    return {**settings, **{group: {**(settings.get(group) or {}), **values}
+                           for group, values in overrides.items()}}
+
+
+def _run_method(method, frames, settings, flow_settings, rng, ablations=None):
     """Objects found by one method: ``pipeline`` (the configured settings), ``faithful``
     (the same with every addition to the paper switched off), ``refined`` (the pipeline
     then ``irc.refine`` of each object's rotation), ``nichega`` (pymoo's niching GA instead
-    of the paper's EA) or ``flow`` (TV-L1 + sequential RANSAC)."""
+    of the paper's EA), ``flow`` (TV-L1 + sequential RANSAC), or the name of an ablation
+    (the pipeline with that ablation's overrides)."""
     from replication.motion import segment_baselines, segmentation
 
     if method == "flow":
         return segment_baselines.flow_ransac_segment(frames, flow_settings, rng)
     chosen = {**settings, "search": "nichega" if method == "nichega" else "paper"}
     if method == "faithful":
-        chosen = {**chosen, **{group: {**settings[group], **values}
-                               for group, values in segmentation.FAITHFUL.items()}}
+        chosen = _with(chosen, segmentation.FAITHFUL)
+    if ablations and method in ablations:
+        chosen = _with(chosen, ablations[method])
     if method == "refined":
         chosen["accumulation"] = {**settings["accumulation"], "refine": True}
     return segmentation.segment(frames, chosen, rng)["objects"]
@@ -293,8 +301,16 @@ def study(config, out):
     settings = segmentation.settings_from(config.get("method"))
     flow_settings = {**FLOW_DEFAULTS, **(config.get("flow") or {})}
     seeds = {method: int(n) for method, n in (config.get("seeds") or {}).items()}
-    unknown = sorted(set(seeds) - set(METHODS))
-    check(not unknown, f"seeds: unknown method(s) {unknown}; expected some of {METHODS}")
+    ablations = dict(config.get("ablations") or {})
+    for name, overrides in ablations.items():
+        check(name not in METHODS, f"ablations.{name}: the name of a method; choose another")
+        check(isinstance(overrides, dict) and all(isinstance(v, dict)
+                                                  for v in overrides.values()),
+              f"ablations.{name}: {overrides}; expected {{group: {{setting: value}}}}")
+        segmentation.settings_from(_with(config.get("method") or {}, overrides))
+    known = [*METHODS, *ablations]
+    unknown = sorted(set(seeds) - set(known))
+    check(not unknown, f"seeds: unknown method(s) {unknown}; expected some of {known}")
     check(all(n >= 0 for n in seeds.values()), f"seeds: {seeds}; expected counts >= 0")
     sequences = _study_sequences(config)
     loaded = {name: read_sequence(item["path"]) for name, item in sequences.items()}
@@ -308,7 +324,8 @@ def study(config, out):
             for run in range(count):
                 rng = np.random.default_rng([int(config["seed"]), index, run])
                 start = time.perf_counter()
-                objects = _run_method(method, sequence.frames, settings, flow_settings, rng)
+                objects = _run_method(method, sequence.frames, settings, flow_settings, rng,
+                                      ablations)
                 seconds = time.perf_counter() - start
                 score = score_objects(objects, sequence.labels[0], sequence.truth)
                 rows.append({"sequence": name, "role": role, "method": method, "run": run,
@@ -320,6 +337,7 @@ def study(config, out):
                      f" regions/run, {np.median([r['seconds'] for r in mine]) if mine else 0:.1f}"
                      " s/run")
     return {"sequences": {name: sequences[name] for name in loaded}, "seeds": seeds,
+            "ablations": ablations,
             "rows": rows, "summary": _summarise_study(rows, list(seeds)),
             "goals": {"found_rate_at_least": 0.9, "centre_px_at_most": 2.0,
                       "iou_at_least": 0.7, "pipeline_seconds_at_most": 10.0}}

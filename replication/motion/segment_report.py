@@ -125,6 +125,18 @@ def study_section(result):
             "omega is biased "
             f"(median |error| {fmt(p['omega_pct_median'], 3)} %; |omega| too large in "
             f"{larger:.0%} of the detected object-runs), as the peak of 2.2 is.")
+    ablations = result.get("ablations") or {}
+    if ablations and "pipeline" in by_name:
+        runs = max(result["seeds"].get(name, 0) for name in ablations)
+        same = [o["found"] for r in result["rows"] if r["method"] == "pipeline"
+                and r["role"] == "study" and r["run"] < runs for o in r["per_object"]]
+        parts = [f"`{name}` ({_overrides_text(change)}): "
+                 f"{by_name[name]['found_fraction']:.0%}" for name, change in ablations.items()
+                 if name in by_name]
+        notes.append(
+            f"Ablations, each the pipeline with one addition off, on the first {runs} runs of "
+            f"each sequence (where the pipeline finds {sum(same) / max(len(same), 1):.0%} of "
+            "object-runs): " + "; ".join(parts) + ".")
     if "refined" in by_name:
         q = by_name["refined"]
         notes.append(
@@ -140,6 +152,12 @@ def study_section(result):
             + "\n".join(lines) + "\n" + "\n".join(per) + "\n\n" + "\n\n".join(notes)
             + "\n\n" + COST_NOTE)
     return Section(text, rows)
+
+
+def _overrides_text(change):
+    """``{"ea": {"keep": 0.1}}`` as ``ea.keep=0.1``."""
+    return ", ".join(f"{group}.{key}={value}" for group, values in change.items()
+                     for key, value in values.items())
 
 
 def _share_overestimated(result, method):

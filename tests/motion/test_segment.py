@@ -150,6 +150,13 @@ def test_real_command_line_writes_objects_and_masks(tmp_path, two_objects):
     assert (tmp_path / "a" / "figures" / "fig05_discs.png").exists()
 
 
+def test_study_refuses_an_unknown_method(tmp_path):
+    done = run_cli("experiment=segment_study", f"out={tmp_path / 'out'}", "+seeds.cmaes=1")
+    assert done.returncode == 2
+    assert "seeds: unknown method(s) ['cmaes']" in done.stderr
+    assert not (tmp_path / "out" / "result.json").exists()
+
+
 @pytest.mark.parametrize("overrides, message", [
     (["data.path=/nonexistent/seq.npz"], "no such file or folder"),
     (["method.ea.generations=0"], "generations=0: expected at least 1"),
@@ -188,12 +195,13 @@ def test_committed_multi_object_data_is_regenerated_identically(tmp_path):
 
 def test_study_runs_on_one_sequence_with_tiny_settings(tmp_path):
     done = run_cli("experiment=segment_study", f"out={tmp_path / 'out'}", "max_sequences=1",
-                   "seeds={pipeline: 1, faithful: 0, refined: 0, nichega: 0, flow: 1}",
+                   "seeds={pipeline: 1, faithful: 0, refined: 0, nichega: 0, flow: 1, "
+                   "no_fresh_projection: 0, inflate_only: 0, one_round: 0, no_extra_seeds: 1}",
                    "method.ea.pop_size=60",
                    "method.ea.generations=10")
     assert done.returncode == 0, done.stderr
     result = json.loads((tmp_path / "out" / "result.json").read_text())
-    assert {s["method"] for s in result["summary"]} == {"pipeline", "flow"}
+    assert {s["method"] for s in result["summary"]} == {"pipeline", "flow", "no_extra_seeds"}
     assert {r["role"] for r in result["rows"]} == {"study", "static"}
     for row in result["rows"]:
         for item in row["per_object"]:

@@ -83,7 +83,8 @@ def study_section(result):
         if s["method"] == "pipeline":
             met = s["objects_at_90pct"] == s["objects"]
             rows.append(SummaryRow(
-                "2.3: EA + snakes + restricted accumulation find every rotating object",
+                "2.3 with this suite's additions: EA, snakes and restricted accumulation find "
+                "every rotating object",
                 "qualitative (Figs. 5-7)",
                 f"{s['found_fraction']:.0%} of object-runs found; {s['objects_at_90pct']}/"
                 f"{s['objects']} objects in >= 90% of runs; median IoU {s['iou_median']:.2f}",

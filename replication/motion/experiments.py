@@ -99,8 +99,8 @@ def _check_settings(settings):
     check(int(settings["omega_count"]) >= 2,
           f"omega_count={settings['omega_count']}: expected at least 2 values")
     check(settings["sigma"] >= 0, f"sigma={settings['sigma']}: expected >= 0 pixels")
-    check(0 < settings["relative_threshold"] < 1,
-          f"relative_threshold={settings['relative_threshold']}: expected a fraction in (0, 1)")
+    for key in ("relative_threshold", "refine_threshold"):
+        check(0 < settings[key] < 1, f"{key}={settings[key]}: expected a fraction in (0, 1)")
     check(settings["cell"] > 0, f"cell={settings['cell']}: expected > 0 pixels")
 
 

@@ -2,7 +2,8 @@
 
 Gathers the ``metrics`` of the area benchmarks (``bench_*`` experiments, run before it by
 ``replicate-all``), the last full test-suite run (``results/tests.json``, written by the
-test suite itself) and the last regeneration (``results/regenerate.json``).
+test suite itself) and the last full regeneration (``results/regenerate-full.json``,
+written when ``replicate-all`` recomputed every result).
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ def gather_benchmarks(config, out):
         sources[name] = {"wall_seconds": result.get("wall_seconds"),
                          "code_sha256": result.get("provenance", {}).get("code_sha256")}
     for label, filename, key in (("test_suite", "tests.json", "seconds"),
-                                 ("last_full_regeneration", "regenerate.json",
+                                 ("last_full_regeneration", "regenerate-full.json",
                                   "total_seconds")):
         path = results_dir / filename
         if path.exists():

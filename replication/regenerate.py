@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
+import os
 import subprocess
 import sys
 import time
@@ -60,8 +61,9 @@ def main(argv=None):
     failures = []
     timings = {}
     start = time.perf_counter()
+    gathered = [name for _, name, block in entries if block.get("gather")]
     for index, (_, name, _) in enumerate(entries, 1):
-        if only and name not in only:
+        if (only and name not in only) or name in gathered:
             continue
         done = (results / name / "result.json").exists() and cache.get(name) == keys[name]
         label = f"[{index}/{len(entries)}] {name}"
@@ -73,7 +75,7 @@ def main(argv=None):
         t0 = time.perf_counter()
         command = [sys.executable, "-m", "replication.cli", f"experiment={name}",
                    f"out={results / name}"]
-        status = subprocess.run(command, cwd=PROJECT_ROOT).returncode
+        status = subprocess.run(command, cwd=PROJECT_ROOT, check=False).returncode
         if status != 0:
             failures.append(name)
             cache.pop(name, None)
@@ -84,8 +86,16 @@ def main(argv=None):
             print(f"{label}: done in {timings[name]:.1f} s", flush=True)
         cache_path.write_text(json.dumps(cache, indent=1, sort_keys=True))
     record = {"total_seconds": time.perf_counter() - start, "experiments": timings,
+              "cpu_count": os.cpu_count(),
               "forced": args.force, "only": sorted(only), "failures": failures}
     (results / "regenerate.json").write_text(json.dumps(record, indent=1) + "\n")
+    if not only and not failures and "up to date" not in timings.values():
+        (results / "regenerate-full.json").write_text(json.dumps(record, indent=1) + "\n")
+    for name in gathered:  # gatherers read the records above, so they run last, always
+        command = [sys.executable, "-m", "replication.cli", f"experiment={name}",
+                   f"out={results / name}"]
+        if subprocess.run(command, cwd=PROJECT_ROOT, check=False).returncode != 0:
+            failures.append(name)
     report_path = PROJECT_ROOT / "REPORT.md"
     report_path.write_text(build_report(results))
     print(f"wrote {report_path} ({time.perf_counter() - start:.1f} s in all)")

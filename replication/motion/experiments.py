@@ -21,7 +21,6 @@ from replication.progress import progress
 from replication.provenance import file_sha256
 from replication.results import write_json_atomic
 
-FIGURE_DIR = Path("figures")
 
 
 def _sequence_spec(base, override):
@@ -147,7 +146,8 @@ def single_rotation(config, out):
     """Paper 2.2 on one sequence: ``irc`` (paper estimate), ``irc_refined``, Figs. 1-4.
 
     ``data.path`` null means the paper-like synthetic sequence ``default_data``, and the
-    figures go to ``figures/``; for any other sequence they go to ``out/figures``.
+    figures go to ``figure_dir`` (``figures/``); for any other sequence they go to
+    ``out/figures``.
     """
     settings = single.settings_from(config.get("method"))
     _check_settings(settings)
@@ -174,7 +174,8 @@ def single_rotation(config, out):
         result["errors"] = {"paper": single.errors(paper, truth),
                             "refined": single.errors(refined, truth)}
     if config.get("figures", True):
-        figure_dir = FIGURE_DIR if given is None else Path(out) / "figures"
+        figure_dir = Path(config.get("figure_dir", "figures")) if given is None \
+            else Path(out) / "figures"
         result["figures"] = _draw_figures(sequence, found, settings, figure_dir)
     return result
 
@@ -249,7 +250,7 @@ def _one_case(name, noise, frames, truth, labels, methods, chosen, settings, con
 
 
 def _accuracy_sequences(config):
-    data_dir = Path(config["data_dir"])
+    data_dir = Path(config["sequences_dir"])
     manifest_path = data_dir / "manifest.json"
     if not manifest_path.exists():
         raise InputError(f"{manifest_path}: no such file; expected the manifest written by "
@@ -367,7 +368,7 @@ def accuracy(config, out):
     return {"sequences": {name: {k: truths[name][k] for k in ("xi", "eta", "omega")}
                           for name in loaded},
             "noise_levels_255": noise_levels, "methods": chosen, "workers": workers,
-            "load_average_1min": {"start": load_before, "end": os.getloadavg()[0]},
+            "wall_load_average_1min": {"start": load_before, "end": os.getloadavg()[0]},
             "rows": rows, "summary": _summarise(rows, chosen, noise_levels)}
 
 

@@ -238,7 +238,7 @@ def _flow_claim(summary):
 def accuracy_section(result):
     """The accuracy table, the goals, and the paper's claim about velocity fields."""
     summary = result["summary"]
-    load = result.get("load_average_1min", {})
+    load = result.get("wall_load_average_1min", {})
     lines = [
         f"{len(result['sequences'])} sequences (`motion_data`, role accuracy) x noise levels "
         f"{', '.join(fmt(v) for v in result['noise_levels_255'])} /255 (Gaussian, added "

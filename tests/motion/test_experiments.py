@@ -21,7 +21,7 @@ def data_config(folder):
 
 
 def accuracy_config(folder):
-    return {"seed": 0, "data_dir": str(folder), "noise_levels_255": [2], "workers": 1,
+    return {"seed": 0, "sequences_dir": str(folder), "noise_levels_255": [2], "workers": 1,
             "methods": ["paper (best peak)", "coarse sweep + refinement",
                         "DE on IRC residual"],
             "method": {"omega_count": 20}, "de": {"max_evals": 150}}

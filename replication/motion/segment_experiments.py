@@ -218,7 +218,7 @@ def _study_sequences(config):
                          "`replicate experiment=motion_multi_data`")
     sequences = json.loads(manifest_path.read_text())["sequences"]
     chosen = {name: item for name, item in sequences.items()
-              if item["role"] in ("study", "static")}
+              if item["role"] in ("study", "static", "heldout")}
     limit = config.get("max_sequences")
     if limit is not None:
         study = [name for name, item in chosen.items() if item["role"] == "study"]
@@ -255,10 +255,10 @@ def _run_method(method, frames, settings, flow_settings, rng, ablations=None):
     return segmentation.segment(frames, chosen, rng)["objects"]
 
 
-def _summarise_study(rows, methods):
+def _summarise_study(rows, methods, role="study"):
     summary = []
     for method in methods:
-        mine = [r for r in rows if r["method"] == method and r["role"] == "study"]
+        mine = [r for r in rows if r["method"] == method and r["role"] == role]
         if not mine:
             continue
         objects = [o for r in mine for o in r["per_object"]]
@@ -321,6 +321,8 @@ def study(config, out):
     for index, (name, sequence) in enumerate(loaded.items()):
         role = sequences[name]["role"]
         for method, count in seeds.items():
+            if role == "heldout" and method in ablations:
+                continue
             for run in range(count):
                 rng = np.random.default_rng([int(config["seed"]), index, run])
                 start = time.perf_counter()
@@ -339,6 +341,7 @@ def study(config, out):
     return {"sequences": {name: sequences[name] for name in loaded}, "seeds": seeds,
             "ablations": ablations,
             "rows": rows, "summary": _summarise_study(rows, list(seeds)),
+            "summary_heldout": _summarise_study(rows, list(seeds), "heldout"),
             "goals": {"found_rate_at_least": 0.9, "centre_px_at_most": 2.0,
                       "iou_at_least": 0.7, "pipeline_seconds_at_most": 10.0}}
 

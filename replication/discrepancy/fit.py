@@ -17,7 +17,6 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from scipy.optimize import minimize_scalar
 
 from replication.cloth.costs import ClothCost, structural_length
 from replication.cloth.model import ClothParams, step
@@ -254,12 +253,12 @@ def constraint_mask(data, base, terms, frames, *, margin=MASK_MARGIN):
     return mask
 
 
-def search_tau(data, base, terms, frames, *, grid=None, max_frames=50):
+def search_tau(data, base, terms, frames, *, grid=None, max_frames=50, levels=7):
     """The critical elongation rate minimising the one-step cost over ``frames``.
 
-    A log grid around the current value (or a wide one), a fine grid around its best
-    value, each evaluated as one population by the compiled kernel, then a bounded scalar
-    search; exact ties go to the smallest ``tau``.
+    A log grid around the current value (or a wide one), then ``levels`` zooms of 21
+    points around the best value (each a tenth of the last bracket), every grid evaluated
+    as one population by the compiled kernel; exact ties go to the smallest ``tau``.
     """
     frames = np.asarray(frames)
     if len(frames) > max_frames:
@@ -283,17 +282,19 @@ def search_tau(data, base, terms, frames, *, grid=None, max_frames=50):
         return cost(params, extra)
 
     values = evaluate(coarse)
-    best = int(np.argmin(values))
-    lo, hi = coarse[max(best - 1, 0)], coarse[min(best + 1, len(coarse) - 1)]
-    fine = np.linspace(lo, hi, 21)
-    fine_values = evaluate(fine)
-    pick = int(np.argmin(fine_values))
-    lo, hi = fine[max(pick - 1, 0)], fine[min(pick + 1, len(fine) - 1)]
-    if hi <= lo:
-        return float(fine[pick])
-    found = minimize_scalar(lambda tau: float(evaluate([tau])[0]), bounds=(lo, hi),
-                            method="bounded", options={"xatol": 1e-9 * hi})
-    return float(found.x) if found.fun <= fine_values[pick] else float(fine[pick])
+    pick = int(np.argmin(values))
+    grid_now, best_tau, best_value = coarse, float(coarse[pick]), float(values[pick])
+    for _ in range(levels):
+        lo = grid_now[max(pick - 1, 0)]
+        hi = grid_now[min(pick + 1, len(grid_now) - 1)]
+        if hi - lo <= 1e-8 * hi:
+            break
+        grid_now = np.linspace(lo, hi, 21)
+        values = evaluate(grid_now)
+        pick = int(np.argmin(values))
+        if values[pick] < best_value:
+            best_tau, best_value = float(grid_now[pick]), float(values[pick])
+    return best_tau
 
 
 def residual_trim(data, columns, theta, frames, mask, *, factor=6.0):
@@ -408,12 +409,14 @@ def _structure_score(data, base, terms, frames):
 
 
 def initial_base(data, frames, *, model="5", block=5, taus=None, inner=3, max_frames=30,
-                 max_score_frames=60, effect_names=()):
+                 max_score_frames=60, max_starts=4, effect_names=()):
     """Robust start: profile over ``tau``.
 
     For each ``tau`` of a coarse grid, alternate an IV fit and the mask of particle-frames
-    whose recorded springs stay below ``(1 + tau) l``, refine ``tau`` on the one-step cost
-    (compiled kernel), and keep the start whose residual structure ``Q`` is smallest.
+    whose recorded springs stay below ``(1 + tau) l`` and pick ``tau`` on the one-step cost
+    (compiled kernel); the ``max_starts`` distinct starts of lowest cost then get ``tau``
+    refined (:func:`search_tau`) and the one whose residual structure ``Q`` is smallest is
+    kept (the cost alone prefers the wrong valley when the model misses an effect).
     """
     taus = np.geomspace(0.02, 1.0, 13) if taus is None else np.asarray(taus)
     ratio = np.sqrt(taus[1] / taus[0]) if len(taus) > 1 else 1.0
@@ -432,7 +435,7 @@ def initial_base(data, frames, *, model="5", block=5, taus=None, inner=3, max_fr
     cost_frames = frames if len(frames) <= max_frames else \
         frames[np.linspace(0, len(frames) - 1, max_frames).round().astype(int)]
     cost = ClothCost(data.trajectory, cost_frames, h=data.h)
-    best = None
+    best, starts = None, {}
     for tau in taus:
         rest = rest0
         base, terms = None, []
@@ -458,7 +461,14 @@ def initial_base(data, frames, *, model="5", block=5, taus=None, inner=3, max_fr
                       base.rest, base.k, data.scene.damping)
         values = cost(params, fx.extra_force(terms, q)[None])
         pick = int(np.argmin(values))
-        candidate = BaseModel(base.rest, base.k, np.full(6, local[pick]))
+        key = (round(float(base.k[0]), 4), round(float(local[pick]), 2))
+        if key not in starts or values[pick] < starts[key][0]:
+            starts[key] = (float(values[pick]),
+                           BaseModel(base.rest, base.k, np.full(6, local[pick])), terms)
+    for _, candidate, terms in sorted(starts.values(), key=lambda s: s[0])[:max_starts]:
+        # Q punishes an imprecise tau wherever the constraint acts: refine it first
+        tau = search_tau(data, candidate, terms, frames, max_frames=max_frames, levels=4)
+        candidate = BaseModel(candidate.rest, candidate.k, np.full(6, tau))
         score = _structure_score(data, candidate, terms, score_frames)
         if best is None or score < best[0]:
             best = (score, candidate)

@@ -65,7 +65,7 @@ DEFAULTS = {
     "damping": 0.05,          # projection mutation: fraction of the way to each line
     "sigma": 1.5,             # derivatives: Gaussian pre-smoothing, pixels
     "relative_threshold": 0.15,
-    "motion_ratio": 0.7,      # rotating disc: rotation residual < this x static residual
+    "motion_ratio": 1.0,      # rotating disc: rotation residual < this x static residual
     "motion_min": 0.1,        # ... and static normal flow above this, pixels/frame
     "size_in_image": True,    # beta term: radius of the disc's part inside the image
     "project_fresh": False,   # true: fresh individuals are projected once (not in the paper)
@@ -379,6 +379,9 @@ class DiscEA:
     crossover: three altered copies of every kept individual (noise on the disc's position
     and radius; noise on ``omega``; damped projection of ``(xi, eta)`` onto the IRC lines
     of the disc's pixels) and fresh random individuals for the rest of the population.
+    With ``project_fresh`` (not in the paper) the fresh individuals are projected once
+    before they are scored, so that a random disc on a moving object can compete with the
+    small static discs that the kept 20% otherwise fill up with.
 
     Parameters
     ----------

@@ -1,9 +1,6 @@
 """Rigid-motion segmentation (paper 2.3): EA with sharing, radial snakes, the pipeline."""
 
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +10,7 @@ from replication.errors import InputError
 from replication.motion import disc_ea, segmentation, snakes
 from replication.motion.multi_synth import make_multi_sequence
 from replication.motion.segment_experiments import score_objects
+from tests.test_cli import run_cli
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -120,13 +118,6 @@ def test_bad_settings_are_refused_with_the_setting_named(method, message):
     with pytest.raises(InputError) as error:
         segmentation.settings_from(method)
     assert message in str(error.value)
-
-
-def run_cli(*overrides):
-    command = [sys.executable, "-m", "replication.cli", *overrides]
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    return subprocess.run(command, cwd=ROOT, capture_output=True, text=True, env=env,
-                          timeout=300)
 
 
 def test_real_command_line_writes_objects_and_masks(tmp_path, two_objects):

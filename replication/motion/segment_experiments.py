@@ -99,8 +99,8 @@ def score_objects(objects, labels, truth, *, centre_px=2.0, iou_min=0.7):
     Returns
     -------
     dict
-        ``per_object`` (label, iou, centre_px, omega_pct, found), ``false_regions``,
-        ``n_found_objects``.
+        ``per_object`` (label, iou, centre_px, omega_pct, found; the errors are None when
+        no found object overlaps the true one), ``false_regions``, ``n_found_objects``.
     """
     rows = []
     for item in truth["objects"]:
@@ -111,8 +111,8 @@ def score_objects(objects, labels, truth, *, centre_px=2.0, iou_min=0.7):
             iou = np.count_nonzero(true_mask & found["mask"]) / union if union else 0.0
             if iou > best_iou:
                 best, best_iou = found, iou
-        row = {"label": item["label"], "iou": best_iou, "centre_px": float("nan"),
-               "omega_pct": float("nan"), "found": False}
+        row = {"label": item["label"], "iou": float(best_iou), "centre_px": None,
+               "omega_pct": None, "found": False}
         if best is not None:
             row["centre_px"] = float(np.hypot(best["xi"] - item["xi"], best["eta"] - item["eta"]))
             if item["omega"] != 0:
@@ -212,7 +212,7 @@ METHODS = ("pipeline", "faithful", "refined", "nichega", "flow")
 
 
 def _study_sequences(config):
-    manifest_path = Path(config["data_dir"]) / "manifest.json"
+    manifest_path = Path(config["sequences_dir"]) / "manifest.json"
     if not manifest_path.exists():
         raise InputError(f"{manifest_path}: no such file; expected the manifest written by "
                          "`replicate experiment=motion_multi_data`")

@@ -14,7 +14,7 @@ import numpy as np
 from pymoo.algorithms.soo.nonconvex.cmaes import CMAES
 from pymoo.algorithms.soo.nonconvex.de import DE
 from pymoo.algorithms.soo.nonconvex.ga import GA
-from pymoo.algorithms.soo.nonconvex.nelder import NelderMead
+from pymoo.algorithms.soo.nonconvex.nelder import NelderAndMeadTermination, NelderMead
 from pymoo.algorithms.soo.nonconvex.pso import PSO
 from pymoo.core.callback import Callback
 from pymoo.core.problem import Problem
@@ -69,7 +69,18 @@ def make_algorithm(name, *, x0=None, options=None):
     raise ValueError(f"algorithm {name!r}: expected one of {', '.join(ALGORITHMS)}")
 
 
-def run_pymoo(objective, name, *, seed, options=None, max_restarts=10_000):
+def _termination(name, budget, x_tol):
+    """pymoo termination of one local run. Nelder-Mead stops when its simplex has shrunk
+    below ``x_tol`` of the bounds (its default also has an absolute ``f_tol`` of 1e-6,
+    which costs of order 1e-6 meet at once); the others run until the budget is spent
+    (their defaults are absolute cost tolerances as well). The budget itself is enforced
+    by the objective."""
+    if name == "nelder_mead":
+        return NelderAndMeadTermination(x_tol=x_tol, f_tol=0.0)
+    return ("n_eval", budget + 1_000_000)
+
+
+def run_pymoo(objective, name, *, seed, options=None, max_restarts=10_000, x_tol=1e-8):
     """Minimise ``objective`` with pymoo algorithm ``name`` until its budget is spent.
 
     Parameters
@@ -83,6 +94,8 @@ def run_pymoo(objective, name, *, seed, options=None, max_restarts=10_000):
         from a generator made from it, so the same seed gives the same run.
     options : dict, optional
         Keyword arguments of the pymoo algorithm (e.g. ``pop_size``, ``sigma``).
+    x_tol : float
+        Nelder-Mead restarts when its simplex is smaller than this fraction of the bounds.
 
     Returns
     -------
@@ -104,7 +117,7 @@ def run_pymoo(objective, name, *, seed, options=None, max_restarts=10_000):
         counter = _GenerationCount()
         try:
             minimize(_BatchedProblem(objective), algorithm,
-                     ("n_eval", objective.remaining + 1_000_000), seed=run_seed,
+                     _termination(name, objective.remaining, x_tol), seed=run_seed,
                      callback=counter, verbose=False)
         except BudgetExhausted:
             pass

@@ -27,6 +27,10 @@ def _pct(value):
     return "n/a" if value is None else f"{100 * value:+.2f}%"
 
 
+def _abs_pct(value):
+    return "n/a" if value is None else f"{100 * value:.2f}%"
+
+
 def _errors_line(run):
     errors = run.get("relative_errors")
     if not errors:
@@ -88,7 +92,7 @@ def tables_section(result):
             f"| {data_label} | {s['n_runs']} | {s['n_success']} "
             f"({fmt(100 * s['success_rate'], 3)}%) | {s['n_inactive_valley']} | "
             f"{s['n_elsewhere']} | {fmt(s['median_cost'])} | "
-            f"{_pct(s['median_abs_error_K'])} | {_pct(s['median_abs_error_tau'])} |")
+            f"{_abs_pct(s['median_abs_error_K'])} | {_abs_pct(s['median_abs_error_tau'])} |")
         rows.append(SummaryRow(
             f"paper EA converges to the reference, {data_label} (3.4)",
             "\"generally\" in 50-100 generations",
@@ -137,8 +141,10 @@ def baselines_section(result):
         f"{budgets[-1]} evaluations (the default keeps the regeneration short; the issue's "
         "fixed budgets are `budgets=[1000,5000,20000]`). Success: all parameters within "
         f"{fmt(100 * cfg['success_rtol'])}% of the truth for the best-so-far point. "
-        "Algorithms that stop on their own tolerances are restarted from a new random point "
-        "until the budget is spent; pymoo's PatternSearch is left out because it ignores the "
+        "CMA-ES (its own stopping rules) and Nelder-Mead (simplex below 1e-8 of the bounds) "
+        "restart from a new random point until the budget is spent; GA, DE, PSO and the "
+        "paper EA evolve one population for the whole budget; least squares restarts after "
+        "each local convergence. pymoo's PatternSearch is left out because it ignores the "
         "seed (not reproducible).",
         "",
     ]
@@ -158,7 +164,7 @@ def baselines_section(result):
                 fmt(s["median_evals_to_success"]),
                 "n/a" if valley is None else f"{fmt(100 * valley, 3)}%",
                 fmt(last["median_cost"], 3),
-                _pct(errs.get("K")), _pct(errs.get("tau"))]
+                _abs_pct(errs.get("K")), _abs_pct(errs.get("tau"))]
             lines.append("| " + " | ".join(cells) + " |")
         lines.append("")
         structured = by_opt.get("structured")
@@ -311,7 +317,7 @@ def noise_section(result):
     for row in result["rows"]:
         lines.append(f"| {fmt(row['noise_level'])} | {row['method']} | "
                      f"{fmt(100 * row['success_rate'], 3)}% | {fmt(row['median_cost'], 3)} | "
-                     + " | ".join(_pct(row["median_abs_errors"][n]) for n in names) + " |")
+                     + " | ".join(_abs_pct(row["median_abs_errors"][n]) for n in names) + " |")
     lines += ["", "The paper says EAs cope with noisy data (section 1) but shows no noise "
               "study; positions with noise make the one-step velocity differences noisy by "
               "sd/dt, which both the cost and the regression see."]

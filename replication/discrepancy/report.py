@@ -61,6 +61,7 @@ def blind_section(result):
     false_rate = s["false_name_rate_effect_free"]
     shrink = s["gap_shrink_median"]
     error = s["coefficient_error_median"]
+    within = s["coefficient_within_10pct"]
     rows = [
         SummaryRow("missing effect named, moderate SNR (issue 6)", "not in paper",
                    _goal(_pct(moderate), moderate is not None and moderate >= 0.9), ">= 90%",
@@ -71,8 +72,9 @@ def blind_section(result):
         SummaryRow("median held-out gap shrink (issue 6)", "not in paper",
                    _goal(f"{fmt(shrink, 3)}x", shrink is not None and shrink >= 5), ">= 5x",
                    BEYOND),
-        SummaryRow("median coefficient error (issue 6)", "not in paper",
-                   _goal(_pct(error), error is not None and error <= 0.1), "<= 10%", BEYOND),
+        SummaryRow("fitted coefficients within 10% of the truth (issue 6)", "not in paper",
+                   _goal(f"{_pct(within)} of correct names (median error {_pct(error)})",
+                         within is not None and within >= 1.0), "all within 10%", BEYOND),
     ]
     return Section("\n".join(lines), rows)
 

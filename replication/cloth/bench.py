@@ -18,32 +18,36 @@ from replication.errors import check
 from replication.progress import progress
 
 
+def _scatter(index, values, size):
+    """Sum rows of ``values`` (S, 3) into ``size`` rows by ``index`` (np.bincount per axis)."""
+    return np.stack([np.bincount(index, weights=values[:, c], minlength=size)
+                     for c in range(values.shape[1])], axis=1)
+
+
 def numpy_step(x, v, rest, k, tau, scene):
     """One contract step for one individual in plain numpy. x, v : (P, 3); rest, k, tau : (6,)."""
     a, b, kind = scene.spring_a, scene.spring_b, scene.spring_type
+    n_particles = len(x)
     mass = scene.mass[:, None]
-    force = mass * scene.gravity - scene.damping * v
     d = x[b] - x[a]
-    length = np.linalg.norm(d, axis=1)
+    length = np.sqrt(np.einsum("ij,ij->i", d, d))
     f = (k[kind] * (length - rest[kind]) / length)[:, None] * d
-    np.add.at(force, a, f)
-    np.add.at(force, b, -f)
+    force = (mass * scene.gravity - scene.damping * v + _scatter(a, f, n_particles)
+             - _scatter(b, f, n_particles))
     free = scene.free[:, None]
     v1 = np.where(free, v + scene.dt * force / mass, 0.0)
     x1 = x + scene.dt * v1
     d = x1[b] - x1[a]
-    length = np.linalg.norm(d, axis=1)
+    length = np.sqrt(np.einsum("ij,ij->i", d, d))
     limit = (1.0 + tau[kind]) * rest[kind]
     over = length > limit
     free_a, free_b = scene.free[a], scene.free[b]
     share = np.where(free_a & free_b, 0.5, 1.0) * over
     move = ((length - limit) / length)[:, None] * d
-    corr = np.zeros_like(x)
-    count = np.zeros(len(x))
-    np.add.at(corr, a, (share * free_a)[:, None] * move)
-    np.add.at(corr, b, -(share * free_b)[:, None] * move)
-    np.add.at(count, a, over & free_a)
-    np.add.at(count, b, over & free_b)
+    corr = (_scatter(a, (share * free_a)[:, None] * move, n_particles)
+            - _scatter(b, (share * free_b)[:, None] * move, n_particles))
+    count = (np.bincount(a, weights=over & free_a, minlength=n_particles)
+             + np.bincount(b, weights=over & free_b, minlength=n_particles))
     x2 = x1 + corr / np.maximum(count, 1.0)[:, None]
     v2 = np.where(free, (x2 - x) / scene.dt, 0.0)
     return x2, v2

@@ -62,12 +62,14 @@ def reconstruction_section(result):
     if len(rows) >= 2:
         good, bad = rows[0], rows[1]
         ratio = bad["rms_error_h"] / good["rms_error_h"]
-        verdict = "replicated" if good["rms_error_h"] < 0.5 < bad["rms_error_h"] else "partly"
+        limit = result["config"]["visible_error_h"]
+        verdict = ("replicated" if good["rms_error_h"] < limit < bad["rms_error_h"]
+                   else "partly")
         summary.append(SummaryRow(
             "Fig. 11: the good identification looks like the original, the trapped one does not",
             "small visual difference vs. visibly wrong",
             f"RMS error {fmt(good['rms_error_h'], 2)} h vs. {fmt(bad['rms_error_h'], 2)} h "
-            f"({fmt(ratio, 2)}x)", "good < 0.5 h < trapped", verdict))
+            f"({fmt(ratio, 2)}x)", f"good < {fmt(limit)} h < trapped", verdict))
     return Section("\n".join(lines), summary)
 
 

@@ -10,8 +10,8 @@ ROOT = Path(__file__).resolve().parent.parent
 
 def pytest_sessionfinish(session, exitstatus):
     """Write ``results/tests.json`` after a run of the whole suite (not a selection)."""
-    args = [a for a in session.config.invocation_params.args if not a.startswith("-")]
-    if args or session.config.getoption("keyword") or session.config.getoption("markexpr"):
+    options = session.config.option
+    if options.file_or_dir or options.keyword or options.markexpr or options.exitfirst:
         return
     reporter = session.config.pluginmanager.get_plugin("terminalreporter")
     counts = {key: len(reporter.stats.get(key, [])) for key in ("passed", "failed", "skipped",

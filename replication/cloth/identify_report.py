@@ -138,8 +138,10 @@ def baselines_section(result):
         "(`replication.optim.objective.Objective`): every parameter vector evaluated counts "
         "once, least-squares Jacobians count n_var evaluations, pymoo's own counter is not "
         f"used. {cfg['n_seeds']} seeds per optimiser and reference run; budget "
-        f"{budgets[-1]} evaluations (the default keeps the regeneration short; the issue's "
-        "fixed budgets are `budgets=[1000,5000,20000]`). Success: all parameters within "
+        f"{budgets[-1]} evaluations"
+        + ("" if budgets[-1] >= 20000 else " (kept short for the regeneration; "
+           "`cloth_baselines_budgets` runs the issue's fixed budgets 1k, 5k and 20k)")
+        + ". Success: all parameters within "
         f"{fmt(100 * cfg['success_rtol'])}% of the truth for the best-so-far point. "
         "CMA-ES (its own stopping rules) and Nelder-Mead (simplex below 1e-8 of the bounds) "
         "restart from a new random point until the budget is spent; GA, DE, PSO and the "
@@ -168,15 +170,16 @@ def baselines_section(result):
             lines.append("| " + " | ".join(cells) + " |")
         lines.append("")
         structured = by_opt.get("structured")
-        if structured is not None and "success_rate" in structured[str(budgets[-1])]:
-            rate = structured[str(budgets[-1])]["success_rate"]
+        goal_budget = max([b for b in budgets if b <= 5000], default=None)
+        if structured is not None and goal_budget is not None \
+                and "success_rate" in structured[str(goal_budget)]:
+            rate = structured[str(goal_budget)]["success_rate"]
             rows.append(SummaryRow(
                 f"structured identifier reaches the truth, {label} (beyond the paper)",
                 "n/a", f"{fmt(100 * rate, 3)}% of {cfg['n_seeds']} seeds within "
-                       f"{budgets[-1]} evaluations (median "
+                       f"{goal_budget} evaluations (median "
                        f"{fmt(structured['median_evals_to_success'])})",
-                "100% within 5,000", "beyond the paper" if rate == 1.0 and budgets[-1]
-                <= 5000 else "not met"))
+                "100% within 5,000", "beyond the paper" if rate == 1.0 else "not met"))
         general = [(n, s[str(budgets[-1])].get("success_rate")) for n, s in by_opt.items()
                    if n not in ("structured",)]
         best_general = max(general, key=lambda item: item[1] or 0.0)

@@ -11,7 +11,8 @@ ROOT = Path(__file__).resolve().parent.parent
 def pytest_sessionfinish(session, exitstatus):
     """Write ``results/tests.json`` after a run of the whole suite (not a selection)."""
     options = session.config.option
-    if options.file_or_dir or options.keyword or options.markexpr or options.exitfirst:
+    if (options.file_or_dir or options.keyword or options.markexpr or options.maxfail
+            or options.collectonly):
         return
     reporter = session.config.pluginmanager.get_plugin("terminalreporter")
     counts = {key: len(reporter.stats.get(key, [])) for key in ("passed", "failed", "skipped",

@@ -6,7 +6,6 @@ experiment's result keys; ``replication.cli`` writes ``result.json``.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -63,11 +62,6 @@ def reference_runs(config, out):
     write_json_atomic(data_dir / "manifest.json", manifest)
     progress(f"wrote {len(files)} trajectories and manifest.json to {data_dir}")
     return {"files": files, "data_dir": str(data_dir), "costs_at_truth": costs}
-
-
-def load_manifest(data_dir):
-    """The manifest written by :func:`reference_runs`."""
-    return json.loads((Path(data_dir) / "manifest.json").read_text())
 
 
 def fig08_mesh(config, out):

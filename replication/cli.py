@@ -61,7 +61,8 @@ def run_experiment(config, out):
         )
     runner = resolve_runner(config["runner"])
     check_writable(out)
-    provenance = {"config_sha256": config_hash(config), "code_sha256": code_hash()}
+    provenance = {"config_sha256": config_hash(config),
+                  "code_sha256": code_hash(config["runner"])}
     previous = read_result(Path(out) / "result.json") if config.get("resume") else None
     if previous is not None and previous.get("provenance") == provenance:
         print(f"up to date: {Path(out) / 'result.json'} (resume=true)", file=sys.stderr)

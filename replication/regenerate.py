@@ -1,9 +1,17 @@
 """``replicate-all``: regenerate every figure, table and REPORT.md.
 
-Runs each experiment that has a ``report`` block, in report order, through the real
-command line (``replicate experiment=NAME``). A result is recomputed only when its
-experiment config, the main config, the package code or an experiment it depends on
+Runs each experiment that has a ``report`` block through the real command line
+(``replicate experiment=NAME out=results/NAME``), up to ``--jobs`` at a time. A result is
+recomputed only when its resolved config, the code its runner imports
+(:func:`replication.provenance.code_hash`) or an experiment it depends on
 (``report.depends_on``) changed since it was made; ``--force`` recomputes everything.
+
+Scheduling: an experiment starts once every experiment it depends on has finished; among
+those ready, the longest (by its last recorded time) starts first. Experiments marked
+``report.exclusive: true`` (the benchmarks, whose timings are results) run with nothing
+else running. ``report.gather: true`` experiments read the records written here, so they
+run last, always. Each experiment's output is printed with its name in front and kept in
+``results/.logs/NAME.log``.
 """
 
 from __future__ import annotations
@@ -14,28 +22,170 @@ import json
 import os
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
-from replication.provenance import PROJECT_ROOT, code_hash
+from hydra import compose, initialize_config_dir
+from omegaconf import OmegaConf
+
+from replication.provenance import PROJECT_ROOT, code_hash, config_hash
 from replication.report import CONFIG_DIR, build_report, experiment_entries
+from replication.results import read_result
 
 CACHE_FILE = ".regenerate-cache.json"
 
 
-def experiment_keys(entries, config_dir=CONFIG_DIR):
-    """Cache key per experiment: its config, the main config, the code, its dependencies."""
-    base = hashlib.sha256()
-    base.update(code_hash().encode())
-    base.update((Path(config_dir).parent / "config.yaml").read_bytes())
-    keys = {}
+def resolved_configs(names, config_dir=CONFIG_DIR):
+    """The resolved config of each experiment, exactly as ``replicate`` composes it."""
+    import replication.cli  # noqa: F401  (registers the config resolvers)
+
+    configs = {}
+    with initialize_config_dir(config_dir=str(Path(config_dir).parent), version_base="1.3"):
+        for name in names:
+            cfg = compose(config_name="config", overrides=[f"experiment={name}"])
+            configs[name] = OmegaConf.to_container(cfg, resolve=True, throw_on_missing=True)
+    return configs
+
+
+def experiment_keys(entries, configs):
+    """Provenance (config and code hashes, as ``replicate`` writes them) and cache key
+    (provenance plus the keys of the experiments it depends on) of each experiment."""
+    provenance, keys = {}, {}
     for _, name, block in entries:
-        digest = hashlib.sha256(base.digest())
-        digest.update((Path(config_dir) / f"{name}.yaml").read_bytes())
+        config = configs[name]
+        provenance[name] = {"config_sha256": config_hash(config),
+                            "code_sha256": code_hash(config["runner"])}
+        digest = hashlib.sha256(json.dumps(provenance[name], sort_keys=True).encode())
         for dependency in block.get("depends_on", []):
             digest.update(keys.get(dependency, dependency).encode())
         keys[name] = digest.hexdigest()
-    return keys
+    return provenance, keys
+
+
+def _cached(cache, name):
+    """The cache entry of ``name`` (``{}`` when absent or in an older format)."""
+    entry = cache.get(name)
+    return entry if isinstance(entry, dict) else {}
+
+
+def expected_seconds(results, cache, names):
+    """Last recorded wall time of each experiment: the cache, else the last full run."""
+    full = results / "regenerate-full.json"
+    recorded = json.loads(full.read_text()).get("experiments", {}) if full.exists() else {}
+    expected = {}
+    for name in names:
+        seconds = _cached(cache, name).get("seconds", recorded.get(name))
+        expected[name] = float(seconds) if isinstance(seconds, (int, float)) else 0.0
+    return expected
+
+
+def is_up_to_date(results, name, key, provenance, cache):
+    """The result exists, was made by this config and code, and its dependencies'
+    results are the ones it was made from."""
+    result = read_result(results / name / "result.json")
+    entry = _cached(cache, name)
+    return (result is not None and result.get("provenance") == provenance
+            and entry.get("key") == key)
+
+
+class _Job:
+    """One ``replicate`` subprocess whose output is echoed with a prefix and logged."""
+
+    def __init__(self, name, command, log_dir, echo):
+        self.name = name
+        self.start = time.perf_counter()
+        Path(log_dir).mkdir(parents=True, exist_ok=True)
+        self.log_path = Path(log_dir) / f"{name}.log"
+        self.process = subprocess.Popen(command, cwd=PROJECT_ROOT, stdout=subprocess.PIPE,
+                                        stderr=subprocess.STDOUT, text=True, bufsize=1)
+        self.reader = threading.Thread(target=self._pump, args=(echo,), daemon=True)
+        self.reader.start()
+
+    def _pump(self, echo):
+        with open(self.log_path, "w") as log:
+            for line in self.process.stdout:
+                log.write(line)
+                if echo:
+                    print(f"    {self.name} | {line.rstrip()}", flush=True)
+
+    def finish(self, status, usage):
+        """Record the exit ``status`` and ``usage`` from ``os.wait4``; return
+        ``(exit code, wall seconds, cpu seconds)``."""
+        self.process.returncode = os.waitstatus_to_exitcode(status)
+        self.reader.join()
+        self.process.stdout.close()
+        wall = time.perf_counter() - self.start
+        return self.process.returncode, wall, usage.ru_utime + usage.ru_stime
+
+
+def _tail(path, lines=15):
+    text = Path(path).read_text().splitlines() if Path(path).exists() else []
+    return "\n".join(f"      {line}" for line in text[-lines:])
+
+
+def replicate_command(results):
+    """``command_for(name)`` of :func:`run_scheduled`: the real ``replicate`` run."""
+    def command_for(name):
+        return [sys.executable, "-m", "replication.cli", f"experiment={name}",
+                f"out={Path(results) / name}"]
+    return command_for
+
+
+def run_scheduled(todo, blocks, *, jobs, expected, command_for, log_dir, echo=True):
+    """Run experiments ``todo`` (names) with ``command_for(name)`` (an argv list), up to
+    ``jobs`` at once, respecting ``depends_on`` and ``exclusive`` of ``blocks[name]``;
+    return ``{name: (exit status, wall seconds, cpu seconds)}``.
+
+    Ready experiments start longest first (``expected[name]`` seconds). An experiment
+    whose dependency failed is not run (status ``None``).
+    """
+    pending = list(todo)
+    running, outcome = {}, {}
+    total = len(pending)
+
+    def blocked(name):
+        return [d for d in blocks[name].get("depends_on", []) if d in pending or
+                any(job.name == d for job in running.values())]
+
+    while pending or running:
+        for name in [n for n in pending
+                     if any(outcome.get(d, (0,))[0] not in (0,)
+                            for d in blocks[n].get("depends_on", []))]:
+            pending.remove(name)
+            outcome[name] = (None, 0.0, 0.0)
+            print(f"[{len(outcome)}/{total}] {name}: not run (a dependency failed)", flush=True)
+        ready = sorted((n for n in pending if not blocked(n)),
+                       key=lambda n: -expected.get(n, 0.0))
+        exclusive_running = any(blocks[j.name].get("exclusive") for j in running.values())
+        for name in ready:
+            if len(running) >= jobs or exclusive_running:
+                break
+            if blocks[name].get("exclusive") and running:
+                continue
+            pending.remove(name)
+            job = _Job(name, command_for(name), log_dir, echo)
+            running[job.process.pid] = job
+            print(f"[start] {name}" + (" (alone: its timings are results)"
+                                       if blocks[name].get("exclusive") else ""), flush=True)
+            exclusive_running = bool(blocks[name].get("exclusive"))
+        if not running:
+            if pending:  # only possible with a dependency cycle or an unknown dependency
+                raise RuntimeError(f"cannot schedule {pending}: check report.depends_on")
+            break
+        pid, status, usage = os.wait4(-1, 0)
+        job = running.pop(pid, None)
+        if job is None:
+            continue
+        outcome[job.name] = job.finish(status, usage)
+        code, wall, cpu = outcome[job.name]
+        label = f"[{len(outcome)}/{total}] {job.name}"
+        if code == 0:
+            print(f"{label}: done in {wall:.1f} s ({cpu:.0f} s of CPU)", flush=True)
+        else:
+            print(f"{label}: FAILED (exit {code}); last lines of {job.log_path}:\n"
+                  f"{_tail(job.log_path)}", flush=True)
+    return outcome
 
 
 def main(argv=None):
@@ -43,57 +193,65 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=main.__doc__)
     parser.add_argument("--force", action="store_true", help="recompute every result")
     parser.add_argument("--only", default="", help="comma-separated experiment names")
+    parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1,
+                        help="experiments run at once (default: the number of CPUs)")
+    parser.add_argument("--quiet", action="store_true",
+                        help="do not echo the experiments' own output (it is still logged)")
     parser.add_argument("--results", default="results")
     args = parser.parse_args(argv)
+    if args.jobs < 1:
+        print(f"error: --jobs={args.jobs}: expected at least 1", file=sys.stderr)
+        return 2
 
     results = Path(args.results)
     results.mkdir(parents=True, exist_ok=True)
     cache_path = results / CACHE_FILE
     cache = json.loads(cache_path.read_text()) if cache_path.exists() else {}
     entries = experiment_entries()
-    keys = experiment_keys(entries)
+    blocks = {name: block for _, name, block in entries}
     only = {name for name in args.only.split(",") if name}
-    unknown = only - set(keys)
+    unknown = only - set(blocks)
     if unknown:
-        print(f"error: --only: unknown experiment(s) {sorted(unknown)}; known: {sorted(keys)}",
-              file=sys.stderr)
+        print(f"error: --only: unknown experiment(s) {sorted(unknown)}; known: "
+              f"{sorted(blocks)}", file=sys.stderr)
         return 2
-    failures = []
-    timings = {}
     start = time.perf_counter()
+    configs = resolved_configs(list(blocks))
+    provenance, keys = experiment_keys(entries, configs)
     gathered = [name for _, name, block in entries if block.get("gather")]
-    for index, (_, name, _) in enumerate(entries, 1):
+    todo, timings, cpu = [], {}, {}
+    for _, name, _ in entries:
         if (only and name not in only) or name in gathered:
             continue
-        done = (results / name / "result.json").exists() and cache.get(name) == keys[name]
-        label = f"[{index}/{len(entries)}] {name}"
-        if done and not args.force:
-            print(f"{label}: up to date", flush=True)
+        if not args.force and is_up_to_date(results, name, keys[name], provenance[name],
+                                             cache):
+            print(f"{name}: up to date", flush=True)
             timings[name] = "up to date"
-            continue
-        print(f"{label}: running", flush=True)
-        t0 = time.perf_counter()
-        command = [sys.executable, "-m", "replication.cli", f"experiment={name}",
-                   f"out={results / name}"]
-        status = subprocess.run(command, cwd=PROJECT_ROOT, check=False).returncode
-        if status != 0:
+        else:
+            todo.append(name)
+    expected = expected_seconds(results, cache, blocks)
+    print(f"{len(todo)} experiment(s) to run, {args.jobs} at a time", flush=True)
+    outcome = run_scheduled(todo, blocks, jobs=args.jobs, expected=expected,
+                            command_for=replicate_command(results),
+                            log_dir=results / ".logs", echo=not args.quiet)
+    failures = []
+    for name in todo:  # report order
+        code, wall, cpu_seconds = outcome[name]
+        if code == 0:
+            cache[name] = {"key": keys[name], "seconds": wall}
+            timings[name], cpu[name] = wall, cpu_seconds
+        else:
             failures.append(name)
             cache.pop(name, None)
-            print(f"{label}: FAILED (exit {status})", flush=True)
-        else:
-            cache[name] = keys[name]
-            timings[name] = time.perf_counter() - t0
-            print(f"{label}: done in {timings[name]:.1f} s", flush=True)
-        cache_path.write_text(json.dumps(cache, indent=1, sort_keys=True))
+    cache_path.write_text(json.dumps(cache, indent=1, sort_keys=True))
     record = {"total_seconds": time.perf_counter() - start, "experiments": timings,
-              "cpu_count": os.cpu_count(),
+              "cpu_seconds": cpu, "jobs": args.jobs, "cpu_count": os.cpu_count(),
               "forced": args.force, "only": sorted(only), "failures": failures}
     (results / "regenerate.json").write_text(json.dumps(record, indent=1) + "\n")
     if not only and not failures and "up to date" not in timings.values():
         (results / "regenerate-full.json").write_text(json.dumps(record, indent=1) + "\n")
     for name in gathered:  # gatherers read the records above, so they run last, always
-        command = [sys.executable, "-m", "replication.cli", f"experiment={name}",
-                   f"out={results / name}"]
+        command = replicate_command(results)(name)
         if subprocess.run(command, cwd=PROJECT_ROOT, check=False).returncode != 0:
             failures.append(name)
     report_path = PROJECT_ROOT / "REPORT.md"

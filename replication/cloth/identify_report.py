@@ -139,7 +139,7 @@ def baselines_section(result):
         "once, least-squares Jacobians count n_var evaluations, pymoo's own counter is not "
         f"used. {cfg['n_seeds']} seeds per optimiser and reference run; budget "
         f"{budgets[-1]} evaluations"
-        + ("" if budgets[-1] >= 20000 else " (kept short for the regeneration; "
+        + ("" if budgets[-1] >= 20000 else " (a quick variant, not part of `replicate-all`; "
            "`cloth_baselines_budgets` runs the issue's fixed budgets 1k, 5k and 20k)")
         + ". Success: all parameters within "
         f"{fmt(100 * cfg['success_rtol'])}% of the truth for the best-so-far point. "

@@ -1,0 +1,121 @@
+"""replicate-all: per-experiment code hashes, cache keys and the parallel scheduler."""
+
+import sys
+import time
+
+import pytest
+
+from replication import provenance
+from replication.regenerate import experiment_keys, resolved_configs, run_scheduled
+from replication.report import experiment_entries
+
+
+def _relative(files):
+    return {str(path.relative_to(provenance.PROJECT_ROOT)) for path in files}
+
+
+def test_code_of_a_cloth_runner_excludes_the_motion_code():
+    files = _relative(provenance.module_closure(["replication.cloth.bench"]))
+    assert "replication/cloth/kernels.py" in files  # imported through cloth.model
+    assert "replication/cloth/__init__.py" in files
+    assert not any(name.startswith("replication/motion/") for name in files)
+    assert not any(name.startswith("replication/discrepancy/") for name in files)
+
+
+def test_code_hash_depends_on_the_runner():
+    cloth = provenance.code_hash("replication.cloth.bench:bench_cloth")
+    assert cloth == provenance.code_hash("replication.cloth.bench")
+    assert cloth != provenance.code_hash("replication.motion.experiments:benchmark")
+    assert cloth != provenance.code_hash()  # the whole package
+
+
+def test_code_hash_follows_an_edit_of_an_imported_module(tmp_path, monkeypatch):
+    package = tmp_path / "replication"
+    (package / "sub").mkdir(parents=True)
+    (package / "__init__.py").write_text("")
+    (package / "sub" / "__init__.py").write_text("")
+    (package / "sub" / "runner.py").write_text("from replication.sub import helper\n")
+    (package / "sub" / "helper.py").write_text("X = 1\n")
+    (package / "other.py").write_text("Y = 1\n")
+    monkeypatch.setattr(provenance, "PROJECT_ROOT", tmp_path)
+    monkeypatch.setattr(provenance, "PACKAGE_DIR", package)
+    monkeypatch.setattr(provenance, "CORE_MODULES", ())
+    before = provenance.code_hash("replication.sub.runner:run")
+    (package / "other.py").write_text("Y = 2\n")
+    assert provenance.code_hash("replication.sub.runner:run") == before
+    (package / "sub" / "helper.py").write_text("X = 2\n")
+    assert provenance.code_hash("replication.sub.runner:run") != before
+
+
+def test_cache_keys_match_what_replicate_writes():
+    entries = [entry for entry in experiment_entries() if entry[1] == "fig08_mesh"]
+    configs = resolved_configs(["fig08_mesh"])
+    prov, keys = experiment_keys(entries, configs)
+    assert prov["fig08_mesh"]["config_sha256"] == provenance.config_hash(configs["fig08_mesh"])
+    assert prov["fig08_mesh"]["code_sha256"] == provenance.code_hash(
+        configs["fig08_mesh"]["runner"])
+    assert set(keys) == {"fig08_mesh"}
+
+
+def _sleeper(log, seconds=0.4, status=0):
+    """A command that logs its start and end times, sleeps, and exits with ``status``."""
+    def command_for(name):
+        code = (f"import time; open({str(log)!r}, 'a').write(f'{name} start {{time.time()}}\\n');"
+                f"time.sleep({seconds}); open({str(log)!r}, 'a').write("
+                f"f'{name} end {{time.time()}}\\n'); raise SystemExit({status} if "
+                f"{name!r} == 'bad' else 0)")
+        return [sys.executable, "-c", code]
+    return command_for
+
+
+def _intervals(log):
+    times = {}
+    for line in log.read_text().splitlines():
+        name, what, value = line.split()
+        times.setdefault(name, {})[what] = float(value)
+    return {name: (t["start"], t["end"]) for name, t in times.items()}
+
+
+def _overlap(a, b):
+    return a[0] < b[1] and b[0] < a[1]
+
+
+def test_scheduler_respects_jobs_dependencies_and_exclusive(tmp_path):
+    log = tmp_path / "log.txt"
+    blocks = {"a": {}, "b": {}, "c": {"depends_on": ["a"]}, "bench": {"exclusive": True},
+              "d": {}}
+    outcome = run_scheduled(list(blocks), blocks, jobs=2, expected={"d": 100.0},
+                            command_for=_sleeper(log), log_dir=tmp_path / "logs", echo=False)
+    assert all(code == 0 for code, _, _ in outcome.values())
+    spans = _intervals(log)
+    assert set(spans) == set(blocks)
+    assert spans["c"][0] >= spans["a"][1]  # after its dependency
+    for other in set(blocks) - {"bench"}:
+        assert not _overlap(spans["bench"], spans[other])  # alone
+    starts = sorted(spans.values())
+    for i, span in enumerate(starts):  # never more than 2 at once
+        assert sum(_overlap(span, other) for other in starts[i + 1:]) <= 1
+    assert min(spans, key=lambda n: spans[n][0]) == "d"  # the longest starts first
+    assert _overlap(spans["a"], spans["d"]) or _overlap(spans["b"], spans["d"])  # in parallel
+    assert (tmp_path / "logs" / "a.log").exists()
+
+
+def test_scheduler_skips_dependents_of_a_failure(tmp_path):
+    log = tmp_path / "log.txt"
+    blocks = {"bad": {}, "child": {"depends_on": ["bad"]}, "free": {}}
+    outcome = run_scheduled(list(blocks), blocks, jobs=1, expected={},
+                            command_for=_sleeper(log, seconds=0.05, status=3),
+                            log_dir=tmp_path / "logs", echo=False)
+    assert outcome["bad"][0] == 3
+    assert outcome["child"][0] is None
+    assert outcome["free"][0] == 0
+    assert "child" not in _intervals(log)
+
+
+def test_scheduler_refuses_a_dependency_cycle(tmp_path):
+    blocks = {"a": {"depends_on": ["a"]}}
+    start = time.time()
+    with pytest.raises(RuntimeError, match="depends_on"):
+        run_scheduled(["a"], blocks, jobs=1, expected={}, command_for=_sleeper(tmp_path / "l"),
+                      log_dir=tmp_path, echo=False)
+    assert time.time() - start < 5

@@ -151,4 +151,22 @@ def speed_section(result):
                                    "met" if _meets(value, goal) else "not met"))
     lines += ["", "Figures measured on this project's 2-core machine; the test-suite and "
               "regeneration times come from the last full runs recorded in `results/`."]
+    lines += _regeneration_lines(result.get("sources", {}).get("last_full_regeneration"))
     return Section("\n".join(lines), rows)
+
+
+def _regeneration_lines(record, slowest=6):
+    """How the last full regeneration spent its time: parallelism, CPU, slowest runs."""
+    if not record:
+        return []
+    walls = {name: s for name, s in record.get("experiments", {}).items()
+             if isinstance(s, (int, float))}
+    cpu = record.get("cpu_seconds", {})
+    lines = ["", f"Last full regeneration: {fmt(record['total_seconds'])} s for {len(walls)} "
+             f"experiments, {record.get('jobs', 1)} at a time on {record.get('cpu_count')} "
+             "CPUs" + (" (benchmarks alone)" if record.get("jobs", 1) > 1 else "")
+             + (f", {fmt(sum(cpu.values()))} s of CPU in all" if cpu else "") + ". Slowest:",
+             "", "| experiment | wall (s) | CPU (s) |", "|---|---|---|"]
+    for name in sorted(walls, key=walls.get, reverse=True)[:slowest]:
+        lines.append(f"| `{name}` | {fmt(walls[name])} | {fmt(cpu.get(name, ''))} |")
+    return lines

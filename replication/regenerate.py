@@ -4,7 +4,9 @@ Runs each experiment that has a ``report`` block through the real command line
 (``replicate experiment=NAME out=results/NAME``), up to ``--jobs`` at a time. A result is
 recomputed only when its resolved config, the code its runner imports
 (:func:`replication.provenance.code_hash`) or an experiment it depends on
-(``report.depends_on``) changed since it was made; ``--force`` recomputes everything.
+(``report.depends_on``) changed since it was made (:func:`stale_experiments`), so a fresh
+clone recomputes nothing that its committed results already hold; ``--force`` recomputes
+everything.
 
 Scheduling: an experiment starts once every experiment it depends on has finished; among
 those ready, the longest (by its last recorded time) starts first. Experiments marked
@@ -80,13 +82,30 @@ def expected_seconds(results, cache, names):
     return expected
 
 
-def is_up_to_date(results, name, key, provenance, cache):
-    """The result exists, was made by this config and code, and its dependencies'
-    results are the ones it was made from."""
-    result = read_result(results / name / "result.json")
-    entry = _cached(cache, name)
-    return (result is not None and result.get("provenance") == provenance
-            and entry.get("key") == key)
+def stale_experiments(entries, results, provenance, keys, cache, *, force=False):
+    """Names of the experiments to recompute.
+
+    A result is current when it exists, carries the provenance (config and code hashes)
+    this config and code give, and no experiment it depends on is recomputed; the cache
+    of keys (which include the dependencies' keys) catches a dependency recomputed by an
+    earlier, interrupted run. Without a cache (a fresh clone) the committed results
+    whose provenance matches are current.
+    """
+    stale = set()
+    changed = True
+    while changed:  # to a fixed point: dependencies may come later in report order
+        changed = False
+        for _, name, block in entries:
+            if name in stale:
+                continue
+            result = read_result(results / name / "result.json")
+            entry = _cached(cache, name)
+            current = (result is not None and result.get("provenance") == provenance[name]
+                       and entry.get("key", keys[name]) == keys[name])
+            if force or not current or any(d in stale for d in block.get("depends_on", [])):
+                stale.add(name)
+                changed = True
+    return stale
 
 
 class _Job:
@@ -219,12 +238,12 @@ def main(argv=None):
     configs = resolved_configs(list(blocks))
     provenance, keys = experiment_keys(entries, configs)
     gathered = [name for _, name, block in entries if block.get("gather")]
+    stale = stale_experiments(entries, results, provenance, keys, cache, force=args.force)
     todo, timings, cpu = [], {}, {}
     for _, name, _ in entries:
         if (only and name not in only) or name in gathered:
             continue
-        if not args.force and is_up_to_date(results, name, keys[name], provenance[name],
-                                             cache):
+        if name not in stale:
             print(f"{name}: up to date", flush=True)
             timings[name] = "up to date"
         else:

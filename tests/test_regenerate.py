@@ -80,12 +80,13 @@ def _overlap(a, b):
     return a[0] < b[1] and b[0] < a[1]
 
 
-def test_scheduler_respects_jobs_dependencies_and_exclusive(tmp_path):
+def test_scheduler_respects_jobs_dependencies_and_exclusive(tmp_path, capsys):
     log = tmp_path / "log.txt"
     blocks = {"a": {}, "b": {}, "c": {"depends_on": ["a"]}, "bench": {"exclusive": True},
               "d": {}}
     outcome = run_scheduled(list(blocks), blocks, jobs=2, expected={"d": 100.0},
-                            command_for=_sleeper(log), log_dir=tmp_path / "logs", echo=False)
+                            command_for=_sleeper(log, seconds=1.0), log_dir=tmp_path / "logs",
+                            echo=False)
     assert all(code == 0 for code, _, _ in outcome.values())
     spans = _intervals(log)
     assert set(spans) == set(blocks)
@@ -95,7 +96,9 @@ def test_scheduler_respects_jobs_dependencies_and_exclusive(tmp_path):
     starts = sorted(spans.values())
     for i, span in enumerate(starts):  # never more than 2 at once
         assert sum(_overlap(span, other) for other in starts[i + 1:]) <= 1
-    assert min(spans, key=lambda n: spans[n][0]) == "d"  # the longest starts first
+    started = [line.split()[1] for line in capsys.readouterr().out.splitlines()
+               if line.startswith("[start]")]
+    assert started[0] == "d"  # the longest (by its expected seconds) starts first
     assert _overlap(spans["a"], spans["d"]) or _overlap(spans["b"], spans["d"])  # in parallel
     assert (tmp_path / "logs" / "a.log").exists()
 
@@ -119,3 +122,24 @@ def test_scheduler_refuses_a_dependency_cycle(tmp_path):
         run_scheduled(["a"], blocks, jobs=1, expected={}, command_for=_sleeper(tmp_path / "l"),
                       log_dir=tmp_path, echo=False)
     assert time.time() - start < 5
+
+
+def test_stale_experiments_follow_provenance_dependencies_and_cache(tmp_path):
+    from replication.regenerate import stale_experiments
+    from replication.results import write_json_atomic
+
+    entries = [(1, "data", {}), (2, "study", {"depends_on": ["data"]}), (3, "other", {})]
+    provenance = {name: {"config_sha256": name, "code_sha256": "c"} for _, name, _ in entries}
+    keys = {name: f"key-{name}" for _, name, _ in entries}
+    for _, name, _ in entries:
+        write_json_atomic(tmp_path / name / "result.json", {"provenance": provenance[name]})
+    assert stale_experiments(entries, tmp_path, provenance, keys, {}) == set()  # fresh clone
+    assert stale_experiments(entries, tmp_path, provenance, keys, {},
+                             force=True) == {"data", "study", "other"}
+    changed = dict(provenance, data={"config_sha256": "new", "code_sha256": "c"})
+    assert stale_experiments(entries, tmp_path, changed, keys, {}) == {"data", "study"}
+    # an earlier run recomputed "data" but stopped before "study": the cached key differs
+    cache = {"study": {"key": "key-made-from-old-data"}}
+    assert stale_experiments(entries, tmp_path, provenance, keys, cache) == {"study"}
+    (tmp_path / "other" / "result.json").unlink()
+    assert stale_experiments(entries, tmp_path, provenance, keys, {}) == {"other"}

@@ -21,9 +21,15 @@ PACKAGE = PACKAGE_DIR.name
 CORE_MODULES = ("replication.cli", "replication.provenance", "replication.results")
 
 
+# config keys that do not change a result: where it goes, whether to resume, how the
+# report shows it, the tests' small settings and the default metrics of sweep plots
+NOT_RESULT_KEYS = ("out", "resume", "report", "smoke", "sweep_metrics")
+
+
 def config_hash(config):
-    """sha256 of a resolved config, independent of key order and of where results go."""
-    config = {key: value for key, value in config.items() if key not in ("out", "resume")}
+    """sha256 of a resolved config without :data:`NOT_RESULT_KEYS`, independent of key
+    order."""
+    config = {key: value for key, value in config.items() if key not in NOT_RESULT_KEYS}
     text = json.dumps(config, sort_keys=True, default=str)
     return hashlib.sha256(text.encode()).hexdigest()
 

@@ -1,8 +1,14 @@
-"""``replicate-gather``: gather the ``result.json`` files of a sweep into one tidy CSV.
+"""``replicate-gather``: gather the ``result.json`` files of a sweep into one tidy CSV and plots.
 
 One row per run: the run folder, the experiment, the seed, the sweep's overrides (from the
 folder name that Hydra's ``override_dirname`` gives) and every numeric leaf of the result
 outside ``config`` and ``versions``, flattened with dots (``metrics.spring_updates...``).
+
+Plots: one PNG per metric in the sweep folder, the metric against one swept override (the
+x axis, numeric when its values are numbers), one line per combination of the other
+varying overrides; each run is a point, the line joins the medians over seeds (runs that
+differ only in ``seed``). The metrics are ``--metric COLUMN`` or else the experiment
+config's ``sweep_metrics:`` list.
 """
 
 from __future__ import annotations
@@ -10,10 +16,20 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import math
+import re
 import sys
 from pathlib import Path
 
+import numpy as np
+
 SKIP = {"config", "versions", "provenance"}
+PREFIX = "override."
+SEED = PREFIX + "seed"
+
+
+class SweepError(Exception):
+    """A metric or override name that the gathered results do not have."""
 
 
 def flatten(value, prefix=""):
@@ -31,31 +47,179 @@ def flatten(value, prefix=""):
 
 
 def overrides_of(run_dir):
-    """``key=value`` pairs from a Hydra ``override_dirname`` folder name."""
+    """``key=value`` pairs from a Hydra ``override_dirname`` folder name.
+
+    ``run_dir`` is relative to the sweep folder: an override value holding a ``/``
+    (``figure_dir=/tmp/f``) makes Hydra nest the folder, so the whole path is read.
+    """
     pairs = {}
-    for part in run_dir.name.split(","):
+    for part in Path(run_dir).as_posix().split(","):
         key, sep, value = part.partition("=")
         if sep:
-            pairs[f"override.{key}"] = value
+            pairs[f"{PREFIX}{key}"] = value
     return pairs
+
+
+def _result_files(sweep_dir):
+    return sorted(Path(sweep_dir).rglob("result.json"))
 
 
 def gather(sweep_dir):
     """Rows (dicts) for every ``result.json`` below ``sweep_dir``, sorted by folder."""
     rows = []
-    for path in sorted(Path(sweep_dir).rglob("result.json")):
+    for path in _result_files(sweep_dir):
         result = json.loads(path.read_text())
-        row = {"run": str(path.parent.relative_to(sweep_dir)), **overrides_of(path.parent)}
+        run = path.parent.relative_to(sweep_dir)
+        row = {"run": str(run), **overrides_of(run)}
         row.update(flatten({k: v for k, v in result.items() if k not in SKIP}))
         rows.append(row)
     return rows
 
 
+def configured_metrics(sweep_dir):
+    """The ``sweep_metrics`` of the runs' resolved configs, in order, without repeats."""
+    metrics = []
+    for path in _result_files(sweep_dir):
+        config = json.loads(path.read_text()).get("config") or {}
+        for name in config.get("sweep_metrics") or []:
+            if name not in metrics:
+                metrics.append(str(name))
+    return metrics
+
+
+def _number(value):
+    """``value`` as a finite float, or ``None`` (strings, booleans, NaN, inf, missing)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    return float(value) if math.isfinite(value) else None
+
+
+def numeric_columns(rows):
+    """Result columns holding numbers in every run that has them, those that vary first."""
+    columns = {key for row in rows for key in row if not key.startswith(PREFIX)}
+    numeric = [key for key in columns if key not in ("seed", "run")
+               and all(isinstance(row[key], (int, float)) and not isinstance(row[key], bool)
+                       for row in rows if key in row)]
+    varies = {key: len({row.get(key) for row in rows}) > 1 for key in numeric}
+    return sorted(numeric, key=lambda key: (not varies[key], key))
+
+
+def varying_overrides(rows):
+    """Override columns whose value is not the same in every run, sorted."""
+    keys = sorted({key for row in rows for key in row if key.startswith(PREFIX)})
+    return [key for key in keys if len({row.get(key) for row in rows}) > 1]
+
+
+def check_names(rows, metrics, x):
+    """Refuse metrics that are not numeric columns and an ``x`` that is not an override.
+
+    Returns the x column (``override.NAME``) or ``None`` when nothing varies.
+    """
+    numeric = numeric_columns(rows)
+    for metric in metrics:
+        if metric not in numeric:
+            what = "not a numeric column" if any(metric in row for row in rows) else \
+                "not a column"
+            raise SweepError(f"metric {metric!r}: {what} of the gathered results; expected "
+                             f"one of {_few(numeric)}")
+    overrides = sorted({key for row in rows for key in row if key.startswith(PREFIX)})
+    if x is None:
+        varying = varying_overrides(rows)
+        others = [key for key in varying if key != SEED]
+        return (others or varying or [None])[0]
+    column = x if x.startswith(PREFIX) else PREFIX + x
+    if column not in overrides:
+        names = ", ".join(key[len(PREFIX):] for key in overrides) or "none"
+        raise SweepError(f"--x {x}: not an override of this sweep; overrides: {names}")
+    return column
+
+
+def _few(names, n=6):
+    return ", ".join(names[:n]) + (", ..." if len(names) > n else "") if names else "none"
+
+
+def median_by_x(pairs):
+    """Median of the y values at each x: ``[(x, y), ...] -> [(x, median), ...]`` sorted by x."""
+    by_x = {}
+    for xv, yv in pairs:
+        by_x.setdefault(xv, []).append(yv)
+    return [(xv, float(np.median(by_x[xv]))) for xv in sorted(by_x)]
+
+
+def series(rows, metric, x):
+    """The lines of one plot: ``metric`` against the override column ``x``.
+
+    Runs are grouped by the other varying overrides except ``seed``; within a group the
+    line is the median over the runs at each x (runs differing only in seed).
+
+    Returns
+    -------
+    numeric : bool
+        Whether every x value is a number (then x values are floats, else strings).
+    lines : list of dict
+        ``{"label", "points": [(x, y)], "median": [(x, median)]}``, sorted by the other
+        overrides' values (numbers by value);
+        runs without a finite value of ``metric`` are left out.
+    """
+    values = [row.get(x) for row in rows]
+    numeric = all(_is_float(v) for v in values)
+    others = [key for key in varying_overrides(rows) if key not in (x, SEED)]
+    groups = {}
+    for row in rows:
+        y = _number(row.get(metric))
+        if y is None:
+            continue
+        xv = float(row[x]) if numeric else str(row.get(x))
+        group = tuple(row.get(key) for key in others)
+        groups.setdefault(group, []).append((xv, y))
+    lines = [{"label": ", ".join(f"{key[len(PREFIX):]}={value}"
+                                 for key, value in zip(others, group)),
+              "points": sorted(pairs), "median": median_by_x(pairs)}
+             for group, pairs in sorted(groups.items(), key=lambda item: _order(item[0]))]
+    return numeric, lines
+
+
+def _order(values):
+    """Sort key of override values: numbers by value, before strings."""
+    return tuple((0, float(v), "") if _is_float(v) else (1, 0.0, str(v)) for v in values)
+
+
+def _is_float(value):
+    try:
+        return math.isfinite(float(value))
+    except (TypeError, ValueError):
+        return False
+
+
+def plot_name(metric, x):
+    """File name of the plot of ``metric`` against the override column ``x``."""
+    safe = lambda name: re.sub(r"[^A-Za-z0-9._-]+", "_", name)  # noqa: E731
+    return f"sweep_{safe(metric)}_vs_{safe(x[len(PREFIX):])}.png"
+
+
+def write_plots(rows, metrics, x, folder):
+    """One PNG per metric in ``folder``; returns the paths."""
+    from replication.figures.sweep import plot_series
+
+    paths = []
+    for metric in metrics:
+        numeric, lines = series(rows, metric, x)
+        paths.append(plot_series(lines, numeric=numeric, metric=metric,
+                                 x_label=x[len(PREFIX):], path=Path(folder) / plot_name(metric, x)))
+    return paths
+
+
 def main(argv=None):
-    """Write the tidy CSV of a sweep folder (default: SWEEP_DIR/results.csv)."""
+    """Write the tidy CSV of a sweep folder (default: SWEEP_DIR/results.csv) and its plots."""
     parser = argparse.ArgumentParser(description=main.__doc__)
     parser.add_argument("sweep_dir")
     parser.add_argument("--output", default=None)
+    parser.add_argument("--metric", action="append", default=None, metavar="COLUMN",
+                        help="a numeric column to plot (repeatable); default: the "
+                             "experiment config's sweep_metrics")
+    parser.add_argument("--x", default=None, metavar="OVERRIDE",
+                        help="the swept override on the x axis; default: the first one "
+                             "that varies, other than seed")
     args = parser.parse_args(argv)
     sweep_dir = Path(args.sweep_dir)
     if not sweep_dir.is_dir():
@@ -65,6 +229,19 @@ def main(argv=None):
     if not rows:
         print(f"error: {sweep_dir}: no result.json below it", file=sys.stderr)
         return 2
+    metrics = args.metric
+    if not metrics:  # the config's list is a default: plot those these runs have
+        metrics = configured_metrics(sweep_dir)
+        numeric = numeric_columns(rows)
+        for metric in [m for m in metrics if m not in numeric]:
+            print(f"sweep_metrics: {metric} is not a numeric column of these results; "
+                  "not plotted")
+        metrics = [m for m in metrics if m in numeric]
+    try:
+        x = check_names(rows, metrics, args.x)
+    except SweepError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
     columns = sorted({key for row in rows for key in row},
                      key=lambda k: (k not in ("run", "experiment", "seed"), k))
     output = Path(args.output) if args.output else sweep_dir / "results.csv"
@@ -73,6 +250,14 @@ def main(argv=None):
         writer.writeheader()
         writer.writerows(rows)
     print(f"wrote {output} ({len(rows)} runs, {len(columns)} columns)")
+    if not metrics:
+        print("no plots: pass --metric COLUMN or list sweep_metrics: in the experiment "
+              f"config; numeric columns: {_few(numeric_columns(rows), 5)}")
+    elif x is None:
+        print("no plots: no override varies across the runs")
+    else:
+        for path in write_plots(rows, metrics, x, sweep_dir):
+            print(f"wrote {path}")
     return 0
 
 

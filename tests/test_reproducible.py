@@ -2,8 +2,21 @@
 
 Each experiment config may carry ``smoke:`` (a list of Hydra overrides) that makes it
 small enough to run twice here; experiments without it are skipped with a reason.
-Output locations (``figure_dir``, ``data_dir``) are redirected into a temporary folder.
+Outputs outside ``out`` are redirected into a temporary folder: the folders
+``figure_dir``, ``figures_dir`` and ``data_dir``, and the files ``figure`` and ``manifest``
+when they name a folder (``figure: figures/x.png``, not a bare name inside ``figure_dir``).
+
+Timings and throughputs cannot repeat, so they are left out of the comparison (with
+paths, versions and the config): a key is a timing when one of its words (split at ``_``
+and ``.``) is a time unit (``s``, ``second``, ``seconds``: ``sweep_s``, ``voting_cells_per_s``,
+``small_cost_seconds_pop100``) or ``wall``, ``speedup`` or ``load`` (machine load), or when
+it is a quotient of two throughputs (``X_over_Y_ratio``). The bench experiments are
+compared on everything else (sizes, counts, thread numbers, accuracy checks).
 """
+
+import json
+import re
+from pathlib import Path
 
 import pytest
 from hydra import compose, initialize_config_dir
@@ -11,9 +24,14 @@ from omegaconf import OmegaConf
 
 from replication.cli import CONFIG_DIR, available_experiments, run_experiment
 
-VOLATILE = ("seconds", "per_second", "wall", "speedup", "provenance", "versions", "config",
-            "figures", "mask_file", "path", "_dir", "files_written")
-OUTPUT_KEYS = ("figure_dir", "data_dir")
+VOLATILE = ("provenance", "versions", "config", "figure", "plots", "mask_file", "path",
+            "_dir", "files_written")
+TIMING_WORDS = {"s", "second", "seconds", "wall", "speedup", "load"}
+OUTPUT_DIRS = ("figure_dir", "figures_dir", "data_dir")
+OUTPUT_FILES = ("figure", "manifest")
+NOT_REPEATED = {
+    "bench": "gathers the results of other experiments from results/ and runs nothing",
+}
 
 
 def _compose(name, extra):
@@ -22,9 +40,15 @@ def _compose(name, extra):
     return OmegaConf.to_container(cfg, resolve=True)
 
 
+def is_timing(key):
+    """True for the names of timings and throughputs (see the module docstring)."""
+    words = set(re.split(r"[_.]", str(key)))
+    return bool(words & TIMING_WORDS) or {"over", "ratio"} <= words
+
+
 def _stable(value, key=""):
     """The result without timings, paths and other run-dependent entries."""
-    if any(word in key for word in VOLATILE):
+    if is_timing(key) or any(word in key for word in VOLATILE):
         return None
     if isinstance(value, dict):
         return {k: _stable(v, k) for k, v in value.items()}
@@ -33,17 +57,40 @@ def _stable(value, key=""):
     return value
 
 
+def _redirect(plain, folder):
+    """Overrides that send every output outside ``out`` into ``folder``."""
+    overrides = [f"{key}={folder / key}" for key in OUTPUT_DIRS if key in plain]
+    for key in OUTPUT_FILES:
+        if isinstance(plain.get(key), str) and Path(plain[key]).parent != Path("."):
+            overrides.append(f"{key}={folder / key / Path(plain[key]).name}")
+    return overrides
+
+
+def test_timing_rule():
+    timings = ["wall_seconds", "sweep_s", "voting_cells_per_s", "voting_cells_per_s_1thread",
+               "spring_updates_per_second_compiled_pop100", "speedup_compiled_over_numpy",
+               "pipeline_s_median", "load_average_1min", "voting_over_hough_ratio_1thread",
+               "analysis_seconds", "paper_ea_small_cost_seconds",
+               "bench_cloth.speedup_compiled_over_numpy"]
+    numbers = ["numba_threads", "springs_per_individual", "voting_pixels", "omega_values",
+               "wald_ratio_quantiles", "max_wald_over_threshold", "per_object_rate",
+               "evaluations_per_run", "numpy_vs_compiled_max_difference_h"]
+    assert [k for k in timings if not is_timing(k)] == []
+    assert [k for k in numbers if is_timing(k)] == []
+
+
 @pytest.mark.parametrize("name", available_experiments())
 def test_same_config_and_seed_give_same_numbers(name, tmp_path):
+    if name in NOT_REPEATED:
+        pytest.skip(f"{name}: {NOT_REPEATED[name]}")
     plain = _compose(name, [])
     smoke = plain.get("smoke")
     if smoke is None:
         pytest.skip(f"{name}: no smoke overrides in its config")
-    if name.startswith("bench"):
-        pytest.skip(f"{name}: timings differ between runs by nature")
     results = []
     for run in ("a", "b"):
-        redirect = [f"{key}={tmp_path / run / key}" for key in OUTPUT_KEYS if key in plain]
-        config = _compose(name, [*smoke, *redirect, f"out={tmp_path / run / 'out'}"])
-        results.append(run_experiment(config, tmp_path / run / "out"))
+        out = tmp_path / run / "out"
+        config = _compose(name, [*smoke, *_redirect(plain, tmp_path / run), f"out={out}"])
+        run_experiment(config, out)
+        results.append(json.loads((out / "result.json").read_text()))
     assert _stable(results[0]) == _stable(results[1])

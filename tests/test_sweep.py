@@ -1,6 +1,7 @@
 """Sweeps, resume, gathering, and runs killed halfway."""
 
 import csv
+import json
 import os
 import signal
 import subprocess
@@ -8,6 +9,9 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
+from replication.sweep import gather, median_by_x, overrides_of, series
 from replication.sweep import main as gather_main
 from tests.test_cli import ROOT, run_cli
 
@@ -34,6 +38,91 @@ def test_multirun_resume_and_gather(tmp_path):
 def test_gather_refuses_empty_folder(tmp_path):
     assert gather_main([str(tmp_path)]) == 2
     assert gather_main([str(tmp_path / "absent")]) == 2
+
+
+def fake_sweep(folder, sweep_metrics=None):
+    """A sweep folder of result.json files: budget x method x seed, cost = f(budget, seed)."""
+    for budget in (100, 300, 1000):
+        for method in ("ea", "structured"):
+            for seed in (0, 1, 2):
+                run = folder / f"budget={budget},method={method},seed={seed}"
+                run.mkdir(parents=True)
+                cost = 1000.0 / budget * (1 + seed) * (2 if method == "ea" else 1)
+                config = {"sweep_metrics": sweep_metrics} if sweep_metrics else {}
+                run.joinpath("result.json").write_text(json.dumps({
+                    "experiment": "fake", "config": config, "seed": seed,
+                    "best": {"cost": cost, "method": method}, "n_evals": budget}))
+    return folder
+
+
+def test_overrides_of_a_folder_nested_by_a_slash_in_a_value():
+    run = Path("budget=100,figure_dir=") / "tmp" / "f,seed=2"
+    assert overrides_of(run) == {"override.budget": "100", "override.figure_dir": "/tmp/f",
+                                 "override.seed": "2"}
+
+
+def test_median_by_x_takes_the_median_of_each_x_sorted():
+    pairs = [(3.0, 5.0), (1.0, 2.0), (3.0, 1.0), (1.0, 4.0), (3.0, 9.0)]
+    assert median_by_x(pairs) == [(1.0, 3.0), (3.0, 5.0)]
+    assert median_by_x([("b", 1.0), ("a", 2.0)]) == [("a", 2.0), ("b", 1.0)]
+
+
+def test_series_groups_by_the_other_overrides_and_takes_medians_over_seeds(tmp_path):
+    rows = gather(fake_sweep(tmp_path))
+    numeric, lines = series(rows, "best.cost", "override.budget")
+    assert numeric and [line["label"] for line in lines] == ["method=ea", "method=structured"]
+    assert len(lines[0]["points"]) == 9  # every run is a point
+    # median over seeds 0, 1, 2 of 1000 / budget * (1 + seed) * 2 is at seed 1
+    assert lines[0]["median"] == [(100.0, 40.0), (300.0, 4000 / 300), (1000.0, 4.0)]
+    assert lines[1]["median"] == [(100.0, 20.0), (300.0, 2000 / 300), (1000.0, 2.0)]
+    categorical, by_method = series(rows, "best.cost", "override.method")
+    assert not categorical and [line["label"] for line in by_method] == [
+        "budget=100", "budget=300", "budget=1000"]
+    assert by_method[0]["median"] == [("ea", 40.0), ("structured", 20.0)]
+
+
+def test_gather_plots_the_configured_metrics_deterministically(tmp_path, capsys):
+    sweep = fake_sweep(tmp_path / "sweep", sweep_metrics=["best.cost", "n_evals"])
+    assert gather_main([str(sweep)]) == 0
+    plots = sorted(p.name for p in sweep.glob("*.png"))
+    assert plots == ["sweep_best.cost_vs_budget.png", "sweep_n_evals_vs_budget.png"]
+    first = (sweep / plots[0]).read_bytes()
+    assert gather_main([str(sweep)]) == 0
+    assert (sweep / plots[0]).read_bytes() == first
+
+
+def test_metric_and_x_options_and_categorical_axis(tmp_path):
+    sweep = fake_sweep(tmp_path / "sweep")
+    assert gather_main([str(sweep), "--metric", "best.cost", "--x", "method"]) == 0
+    assert [p.name for p in sweep.glob("*.png")] == ["sweep_best.cost_vs_method.png"]
+
+
+def test_no_metric_gives_a_hint_and_no_plot(tmp_path, capsys):
+    sweep = fake_sweep(tmp_path / "sweep")
+    assert gather_main([str(sweep)]) == 0
+    hint = capsys.readouterr().out.splitlines()[-1]
+    assert hint.startswith("no plots:") and "best.cost" in hint and "n_evals" in hint
+    assert not list(sweep.glob("*.png"))
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--metric", "best.nope"], "error: metric 'best.nope': not a column"),
+    (["--metric", "best.method"], "error: metric 'best.method': not a numeric column"),
+    (["--metric", "best.cost", "--x", "zoom"], "error: --x zoom: not an override"),
+])
+def test_unknown_metric_or_override_exits_2(tmp_path, capsys, args, message):
+    sweep = fake_sweep(tmp_path / "sweep")
+    assert gather_main([str(sweep), *args]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(message) and err.count("\n") == 1
+    assert not list(sweep.glob("*.png")) and not (sweep / "results.csv").exists()
+
+
+def test_configured_metric_absent_from_the_results_is_skipped_with_a_note(tmp_path, capsys):
+    sweep = fake_sweep(tmp_path / "sweep", sweep_metrics=["best.absent", "n_evals"])
+    assert gather_main([str(sweep)]) == 0
+    assert "sweep_metrics: best.absent is not a numeric column" in capsys.readouterr().out
+    assert [p.name for p in sweep.glob("*.png")] == ["sweep_n_evals_vs_budget.png"]
 
 
 def test_run_killed_halfway_leaves_no_result(tmp_path):

@@ -23,6 +23,7 @@ from pymoo.optimize import minimize
 from replication.optim.objective import BudgetExhausted
 
 ALGORITHMS = ("ga", "de", "cmaes", "pso", "nelder_mead")
+WORST_COST = 1e300  # what pymoo sees instead of an infinite cost
 _NEEDS_X0 = {"cmaes", "nelder_mead"}
 
 
@@ -35,7 +36,11 @@ class _BatchedProblem(Problem):
         self.objective = objective
 
     def _evaluate(self, X, out, *args, **kwargs):
-        out["F"] = self.objective.evaluate(X)[:, None]
+        # an infinite cost (a simulation that blew up) reaches pymoo as the largest cost it
+        # can rank without arithmetic failing: Nelder-Mead's termination subtracts costs,
+        # and inf - inf = NaN fails its "Invalid progress" check. The objective itself
+        # (its count and trace) keeps inf.
+        out["F"] = np.minimum(self.objective.evaluate(X), WORST_COST)[:, None]
 
 
 class _GenerationCount(Callback):

@@ -14,6 +14,11 @@ from scipy.optimize import least_squares
 from replication.optim.objective import BudgetExhausted
 
 
+class _StartFailed(Exception):
+    """A local run cannot go on: non-finite residuals where scipy needs finite ones (its
+    start point, or a Jacobian step). Ends this start only; the next start follows."""
+
+
 def _forward_jacobian(objective, x, f0, rel_step):
     """Forward-difference Jacobian ``(m, n_var)`` of the residuals at ``x``, one batch."""
     scale = np.maximum(np.abs(x), 1e-8 * (objective.upper - objective.lower))
@@ -23,7 +28,9 @@ def _forward_jacobian(objective, x, f0, rel_step):
     X = x[None, :] + np.diag(step)
     R = objective.evaluate_residuals(X)
     if not np.all(np.isfinite(R)):
-        raise BudgetExhausted("non-finite residuals in the Jacobian batch")
+        if objective.remaining == 0:  # the rows beyond the budget are inf
+            raise BudgetExhausted("budget spent inside a Jacobian batch")
+        raise _StartFailed("non-finite residuals in the Jacobian batch")
     return ((R - f0[None, :]) / step[:, None]).T
 
 
@@ -59,25 +66,35 @@ def run_least_squares(objective, *, rng, method="trf", rel_step=1e-6, max_starts
     cache = {}
 
     def residuals(x):
+        # one row: evaluate_residuals raises BudgetExhausted once the budget is spent, so
+        # a non-finite row is a real one (a blown-up simulation, a NaN)
         r = objective.evaluate_residuals(x[None, :])[0]
         if not np.all(np.isfinite(r)):
-            raise BudgetExhausted("budget spent inside a local run")
+            if "x" not in cache:  # scipy refuses a non-finite start point
+                raise _StartFailed("non-finite residuals at the start point")
+            r = np.full_like(r, np.inf)  # scipy's trust region shrinks on a non-finite step
+            return r
         cache["x"], cache["r"] = x.copy(), r
         return r
 
     def jacobian(x):
         if "x" not in cache or not np.array_equal(cache["x"], x):
             residuals(x)
+            if not np.array_equal(cache["x"], x):  # non-finite at x: no Jacobian there
+                raise _StartFailed("non-finite residuals where a Jacobian is needed")
         return _forward_jacobian(objective, x, cache["r"], rel_step)
 
     while objective.remaining > 0 and starts < max_starts:
         x0 = objective.lower + rng.random(objective.n_var) * (objective.upper - objective.lower)
         starts += 1
+        cache.clear()
         try:
             fit = least_squares(residuals, x0, jac=jacobian,
                                 bounds=(objective.lower, objective.upper), method=method,
                                 **options)
             local_costs.append(float(2.0 * fit.cost))
+        except _StartFailed:
+            continue
         except BudgetExhausted:
             break
     return {"starts": starts, "local_costs": local_costs}

@@ -151,15 +151,36 @@ def replicate_command(results):
     return command_for
 
 
+def critical_paths(names, blocks, expected):
+    """Expected seconds from the start of each experiment to the end of the longest chain
+    of experiments that depend on it (its own time plus the longest of its dependents'):
+    starting the longest chains first keeps a long study from waiting on its data."""
+    dependents = {name: [n for n in names if name in blocks[n].get("depends_on", [])]
+                  for name in names}
+    paths = {}
+
+    def path(name, seen=()):
+        if name not in paths:
+            if name in seen:  # a cycle: run_scheduled refuses it
+                return 0.0
+            paths[name] = expected.get(name, 0.0) + max(
+                (path(d, seen + (name,)) for d in dependents[name]), default=0.0)
+        return paths[name]
+
+    return {name: path(name) for name in names}
+
+
 def run_scheduled(todo, blocks, *, jobs, expected, command_for, log_dir, echo=True):
     """Run experiments ``todo`` (names) with ``command_for(name)`` (an argv list), up to
     ``jobs`` at once, respecting ``depends_on`` and ``exclusive`` of ``blocks[name]``;
     return ``{name: (exit status, wall seconds, cpu seconds)}``.
 
-    Ready experiments start longest first (``expected[name]`` seconds). An experiment
+    Ready experiments start longest chain first (:func:`critical_paths` of ``expected``
+    seconds). An experiment
     whose dependency failed is not run (status ``None``).
     """
     pending = list(todo)
+    priority = critical_paths(todo, blocks, expected)
     running, outcome = {}, {}
     total = len(pending)
 
@@ -174,8 +195,7 @@ def run_scheduled(todo, blocks, *, jobs, expected, command_for, log_dir, echo=Tr
             pending.remove(name)
             outcome[name] = (None, 0.0, 0.0)
             print(f"[{len(outcome)}/{total}] {name}: not run (a dependency failed)", flush=True)
-        ready = sorted((n for n in pending if not blocked(n)),
-                       key=lambda n: -expected.get(n, 0.0))
+        ready = sorted((n for n in pending if not blocked(n)), key=lambda n: -priority[n])
         exclusive_running = any(blocks[j.name].get("exclusive") for j in running.values())
         for name in ready:
             if len(running) >= jobs or exclusive_running:

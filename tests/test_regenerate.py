@@ -143,3 +143,11 @@ def test_stale_experiments_follow_provenance_dependencies_and_cache(tmp_path):
     assert stale_experiments(entries, tmp_path, provenance, keys, cache) == {"study"}
     (tmp_path / "other" / "result.json").unlink()
     assert stale_experiments(entries, tmp_path, provenance, keys, {}) == {"other"}
+
+
+def test_critical_paths_put_a_short_data_step_before_long_studies():
+    from replication.regenerate import critical_paths
+
+    blocks = {"data": {}, "study": {"depends_on": ["data"]}, "other": {}}
+    paths = critical_paths(list(blocks), blocks, {"data": 1.0, "study": 100.0, "other": 50.0})
+    assert paths == {"data": 101.0, "study": 100.0, "other": 50.0}

@@ -151,3 +151,11 @@ def test_critical_paths_put_a_short_data_step_before_long_studies():
     blocks = {"data": {}, "study": {"depends_on": ["data"]}, "other": {}}
     paths = critical_paths(list(blocks), blocks, {"data": 1.0, "study": 100.0, "other": 50.0})
     assert paths == {"data": 101.0, "study": 100.0, "other": 50.0}
+
+
+def test_shared_runs_wait_passively_unless_the_user_chose():
+    from replication.regenerate import sharing_environment
+
+    assert sharing_environment(2, {})["OMP_WAIT_POLICY"] == "PASSIVE"
+    assert "OMP_WAIT_POLICY" not in sharing_environment(1, {})
+    assert sharing_environment(2, {"OMP_WAIT_POLICY": "ACTIVE"})["OMP_WAIT_POLICY"] == "ACTIVE"

@@ -369,6 +369,7 @@ def benchmark(config, out):
                "search_s_median": search_s,
                "snakes_s_median": float(np.median([s["snakes"] for s in steps])),
                "accumulation_s_median": float(np.median([s["accumulation"] for s in steps])),
+               "assign_s_median": float(np.median([s["assign"] for s in steps])),
                "disc_evaluations_per_s": evaluations / search_s,
                "frame_pixels": int(np.prod(sequence.frames.shape[1:])),
                "numba_threads": numba.get_num_threads()}

@@ -13,6 +13,9 @@
    whose rotation is accumulated again over the union of its regions. Optionally (beyond
    the paper) that rotation is refined by ``irc.refine`` (iterative warping), and the
    object's mask grown by snakes from extra seeds (:func:`grow_from_seeds`).
+4. Optionally (``assign.enabled``, beyond the paper) every object's mask is replaced by a
+   per-pixel assignment of the pixels to the motions found (:mod:`.assignment`), and its
+   rotation accumulated again over that mask (:func:`assign_pixels`).
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ import time
 import numpy as np
 
 from replication.errors import InputError
-from replication.motion import disc_ea, irc, snakes
+from replication.motion import assignment, disc_ea, irc, snakes
 from replication.motion.derivatives import PixelDerivatives
 
 SNAKE_DEFAULTS = {"tolerance": 0.3, "ambiguous": 0.15, "empty_cost": 0.2,
@@ -48,16 +51,18 @@ MERGE_DEFAULTS = {"centre_px": 8.0, "omega_rel": 0.25, "min_area": 150,
 # the additions to the paper that the study's "pipeline" uses; "faithful" switches them off
 FAITHFUL = {"ea": {"project_fresh": False, "reject_static": False},
             "snake": {"deflate": False, "rounds": 1},
-            "accumulation": {"refine": False}, "merge": {"extra_seeds": 0}}
+            "accumulation": {"refine": False}, "merge": {"extra_seeds": 0},
+            "assign": {"enabled": False}}
 GROUPS = {"ea": disc_ea.DEFAULTS, "snake": SNAKE_DEFAULTS,
-          "accumulation": ACCUMULATION_DEFAULTS, "merge": MERGE_DEFAULTS}
+          "accumulation": ACCUMULATION_DEFAULTS, "merge": MERGE_DEFAULTS,
+          "assign": assignment.DEFAULTS}
 
 
 def settings_from(method):
     """Defaults of every step updated by a config's ``method`` block.
 
     ``method`` is ``{search: paper|nichega, ea: {...}, snake: {...}, accumulation: {...},
-    merge: {...}, nichega: {...}}``; unknown groups or keys are refused.
+    merge: {...}, assign: {...}, nichega: {...}}``; unknown groups or keys are refused.
 
     Raises
     ------
@@ -83,6 +88,10 @@ def settings_from(method):
         disc_ea.check_settings(settings["ea"])
     except ValueError as error:
         raise InputError(f"method.ea.{error}") from None
+    try:
+        assignment.check_settings(settings["assign"])
+    except ValueError as error:
+        raise InputError(f"method.assign.{error}") from None
     return settings
 
 
@@ -122,7 +131,7 @@ def window_grid(mask, shape, settings, margin):
                     ny=int(math.floor((y1 - y0) / cell)) + 1)
 
 
-def restricted_accumulation(pixels, mask, omega, settings, *, margin):
+def restricted_accumulation(pixels, mask, omega, settings, *, margin, omegas=None):
     """Paper 2.3.4: the accumulation of 2.2 with the votes of ``mask``'s pixels only.
 
     Parameters
@@ -136,6 +145,8 @@ def restricted_accumulation(pixels, mask, omega, settings, *, margin):
         :data:`ACCUMULATION_DEFAULTS` keys.
     margin : float
         How far outside the image a centre may lie, pixels.
+    omegas : (m,) array_like, optional
+        The sweep instead of the one around ``omega`` (:func:`omega_values`).
 
     Returns
     -------
@@ -150,7 +161,9 @@ def restricted_accumulation(pixels, mask, omega, settings, *, margin):
     index = index[:: max(1, -(-index.size // int(settings["max_pixels"])))]
     chosen = _subset(pixels, index)
     grid = window_grid(mask, mask.shape, settings, margin)
-    best = irc.paper_estimate(irc.sweep(chosen, omega_values(omega, settings), grid))
+    if omegas is None:
+        omegas = omega_values(omega, settings)
+    best = irc.paper_estimate(irc.sweep(chosen, omegas, grid))
     best["pixels"] = int(np.count_nonzero(inside))
     best["grid"] = grid
     return best
@@ -235,6 +248,96 @@ def grow_from_seeds(data, found, settings):
     return mask
 
 
+def _merged_objects(objects, settings):
+    """Objects of one motion (:func:`merge_groups`) as one: the union of their masks, the
+    rotation of the largest."""
+    merged = []
+    for group in merge_groups(objects, settings):
+        members = sorted(group, key=lambda i: -objects[i]["area"])
+        merged.append({**objects[members[0]], "mask": np.logical_or.reduce(
+            [objects[i]["mask"] for i in members])})
+    return merged
+
+
+def rescued_objects(data, pixels, objects, settings, smoothed=None):
+    """Objects the disc search missed (not in the paper; ``assign.rescue = 0`` is off).
+
+    Each region that no motion found explains (:func:`assignment.unexplained_regions`) gets
+    the paper's single-rotation accumulation (2.2) over its own pixels: a sweep of
+    ``omega`` over the EA's bounds, then the restricted sweep around the best peak.
+    ``smoothed``: :func:`assignment.smoothed_hypotheses` of ``objects``, if computed.
+
+    Returns
+    -------
+    list of dict
+        ``xi, eta, omega, peak, area, mask, regions ([]), grid``.
+    """
+    ea, acc = settings["ea"], settings["accumulation"]
+    found = []
+    for region in assignment.unexplained_regions(data, objects, settings["assign"],
+                                                 smoothed):
+        omegas = irc.omega_sweep(ea["omega_min"], ea["omega_max"], 2 * int(acc["omega_count"]))
+        first = restricted_accumulation(pixels, region, 0.0, acc, margin=ea["margin"],
+                                        omegas=omegas[np.abs(omegas) >= ea["omega_eps"]])
+        if first is None:
+            continue
+        best = restricted_accumulation(pixels, region, first["omega"], acc,
+                                       margin=ea["margin"])
+        found.append({"xi": best["xi"], "eta": best["eta"], "omega": best["omega"],
+                      "peak": best["peak"], "area": int(np.count_nonzero(region)),
+                      "mask": region, "regions": [], "grid": best["grid"],
+                      "accumulation": {k: best[k] for k in ("xi", "eta", "omega")}})
+    return found
+
+
+def assign_pixels(frames, data, pixels, objects, settings):
+    """Step 4 (not in the paper): objects whose final rotations share a centre (and speed,
+    as in :func:`merge_groups`) become one, with the union of their masks and the rotation
+    of the largest; regions no motion explains may add objects (:func:`rescued_objects`,
+    merged the same way); each object's mask then comes from :func:`assignment.assign`,
+    and an object whose new mask has fewer than ``merge.min_area`` pixels or less than
+    ``assign.keep_share`` of its former mask is dropped and the rest assigned again; with
+    ``assign.reestimate`` its rotation is accumulated again over the new mask (then refined
+    if ``accumulation.refine``).
+
+    Returns
+    -------
+    list of dict
+        The objects, with ``mask``, ``area`` and possibly ``xi, eta, omega, peak, grid``
+        replaced; ``snake_mask`` holds the mask before.
+    """
+    objects = _merged_objects(objects, settings["merge"])
+    smoothed = assignment.smoothed_hypotheses(data, objects, settings["assign"])
+    rescued = rescued_objects(data, pixels, objects, settings, smoothed)
+    if rescued:
+        objects = _merged_objects(objects + rescued, settings["merge"])
+        smoothed = None
+    while True:   # a motion that keeps too little of its region is dropped; assign again
+        masks = assignment.assign(data, objects, settings["assign"], smoothed)
+        smoothed = None
+        area = np.array([np.count_nonzero(m) for m in masks])
+        keep = (area >= settings["merge"]["min_area"]) & (
+            area >= settings["assign"]["keep_share"] * np.array(
+                [np.count_nonzero(o["mask"]) for o in objects]))
+        if keep.all():
+            break
+        objects = [o for o, k in zip(objects, keep) if k]
+    kept = []
+    for found, mask in zip(objects, masks):
+        found = {**found, "mask": mask, "area": int(np.count_nonzero(mask)),
+                 "snake_mask": found["mask"]}
+        if settings["assign"]["reestimate"]:
+            again = restricted_accumulation(pixels, mask, found["omega"],
+                                            settings["accumulation"],
+                                            margin=settings["ea"]["margin"])
+            if again is not None:
+                found.update({k: again[k] for k in ("xi", "eta", "omega", "peak", "grid")})
+                if settings["accumulation"]["refine"]:
+                    found.update(_refined(frames, found, settings))
+        kept.append(found)
+    return kept
+
+
 def search_discs(data, settings, rng):
     """Step 1: the retained discs ``(n, 6)`` of the chosen search, and its evaluations."""
     if settings["search"] == "nichega":
@@ -259,10 +362,11 @@ def segment(frames, settings, rng):
     Returns
     -------
     dict
-        ``objects``: list of ``{xi, eta, omega, area, mask ((H, W) bool), peak, regions}``;
+        ``objects``: list of ``{xi, eta, omega, area, mask ((H, W) bool), peak, regions}``
+        (with ``assign.enabled`` also ``snake_mask``, the mask before the assignment);
         ``discs`` (retained, (n, 6)), ``rotating`` ((n,) bool), ``regions`` (per rotating
         disc: snake ``rho``, ``centre``, ``mask``, refined estimate or None), ``seconds``
-        per step, ``evaluations``.
+        per step (search, snakes, accumulation, assign), ``evaluations``.
     """
     ea = settings["ea"]
     clock = [time.perf_counter()]
@@ -310,7 +414,10 @@ def segment(frames, settings, rng):
             found["area"] = int(np.count_nonzero(found["mask"]))
         objects.append(found)
     clock.append(time.perf_counter())
-    steps = ("search", "snakes", "accumulation")
+    if settings["assign"]["enabled"]:
+        objects = assign_pixels(frames, data, pixels, objects, settings)
+    clock.append(time.perf_counter())
+    steps = ("search", "snakes", "accumulation", "assign")
     return {"objects": objects, "discs": discs, "rotating": rotating, "regions": regions,
             "evaluations": evaluations, "pixels": pixels,
             "seconds": {s: clock[k + 1] - clock[k] for k, s in enumerate(steps)}}

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from replication.errors import InputError
-from replication.motion import disc_ea, segmentation, snakes
+from replication.motion import assignment, disc_ea, segmentation, snakes
 from replication.motion.multi_synth import make_multi_sequence
 from replication.motion.segment_experiments import score_objects
 from tests.test_cli import run_cli
@@ -113,6 +113,8 @@ def test_ea_is_deterministic_for_a_seed(two_objects):
     ({"snake": {"stiffness": 1}}, "method.snake: unknown setting(s) ['stiffness']"),
     ({"search": "cmaes"}, "method.search: 'cmaes'; expected paper or nichega"),
     ({"colour": {}}, "method: unknown group(s) ['colour']"),
+    ({"assign": {"sigma": 0}}, "method.assign.sigma=0: expected a value > 0"),
+    ({"assign": {"share": 1.5}}, "expected shares of at most 1"),
 ])
 def test_bad_settings_are_refused_with_the_setting_named(method, message):
     with pytest.raises(InputError) as error:
@@ -187,7 +189,8 @@ def test_committed_multi_object_data_is_regenerated_identically(tmp_path):
 def test_study_runs_on_one_sequence_with_tiny_settings(tmp_path):
     done = run_cli("experiment=segment_study", f"out={tmp_path / 'out'}", "max_sequences=1",
                    "seeds={pipeline: 1, faithful: 0, refined: 0, nichega: 0, flow: 1, "
-                   "no_fresh_projection: 0, inflate_only: 0, one_round: 0, no_extra_seeds: 1}",
+                   "no_fresh_projection: 0, inflate_only: 0, one_round: 0, no_extra_seeds: 1, "
+                   "no_assign: 0, no_rescue: 0}",
                    "method.ea.pop_size=60",
                    "method.ea.generations=10")
     assert done.returncode == 0, done.stderr
@@ -197,3 +200,115 @@ def test_study_runs_on_one_sequence_with_tiny_settings(tmp_path):
     for row in result["rows"]:
         for item in row["per_object"]:
             assert 0.0 <= item["iou"] <= 1.0
+
+
+# a C-shape whose rotation centre (60, 64) lies in its own hole (the shape's centre is
+# (64, 64), its hole 22 px in radius): a radial snake is star-shaped around the centre
+C_IN_HOLE = {
+    "shape": [128, 128], "n_frames": 2, "supersample": 2, "noise_sigma": 1 / 255,
+    "background_texture": {"kind": "procedural", "scale": 1.5},
+    "objects": [
+        {"center": [60, 64], "omega": 0.03, "texture": {"kind": "procedural", "scale": 2.0},
+         "shape": {"center": [64, 64], "r_inner": 22, "r_outer": 46, "gap_deg": 120,
+                   "gap_dir_deg": 0}}],
+}
+ASSIGN = {"enabled": True, "weight_power": 2.0, "keep_share": 0.3, "rescue": 2}
+
+
+@pytest.fixture(scope="module")
+def c_in_hole():
+    return make_multi_sequence(C_IN_HOLE, rng=2)
+
+
+def _iou(a, b):
+    return np.count_nonzero(a & b) / np.count_nonzero(a | b)
+
+
+def test_assignment_follows_a_c_shape_whose_centre_is_in_its_hole(c_in_hole):
+    frames, labels, truth = c_in_hole
+    true_mask = labels[0] == 1
+    data = disc_ea.disc_data(frames)
+    motion = {"xi": 60.0, "eta": 64.0, "omega": 0.03}
+    # a radial snake from a disc on the object's left side, as the EA would give it
+    snake = snakes.radial_snake(data, [30.0, 64.0, 8.0, 60.0, 64.0, 0.03], rho_max=60,
+                                deflate=True)
+    settings = {**assignment.DEFAULTS, **ASSIGN}
+    mask, = assignment.assign(data, [{**motion, "mask": snake["mask"]}], settings)
+    assert _iou(mask, true_mask) >= 0.7
+    assert _iou(mask, true_mask) > _iou(snake["mask"], true_mask) + 0.05
+    hole = np.hypot(*np.mgrid[0:128, 0:128][::-1] - np.array([64, 64])[:, None, None]) < 12
+    assert np.count_nonzero(mask & hole) < 0.2 * np.count_nonzero(hole)
+
+
+def test_pipeline_with_assignment_segments_the_c_shape(c_in_hole):
+    frames, labels, truth = c_in_hole
+    rows = {}
+    for enabled in (False, True):
+        method = {**SMALL, "assign": {**ASSIGN, "enabled": enabled},
+                  "merge": {"extra_seeds": 3}}
+        found = segmentation.segment(frames, segmentation.settings_from(method), 3)
+        rows[enabled] = score_objects(found["objects"], labels[0], truth)["per_object"][0]
+    assert rows[True]["iou"] >= 0.7 and rows[True]["centre_px"] <= 2.0, rows
+    assert rows[True]["iou"] >= rows[False]["iou"], rows
+
+
+def test_assignment_switched_off_leaves_the_pipeline_unchanged(two_objects):
+    frames = two_objects[0]
+    base = segmentation.segment(frames, segmentation.settings_from(SMALL), 3)
+    off = {**SMALL, "assign": {**ASSIGN, "enabled": False, "sigma": 9.0, "margin": 0.5}}
+    other = segmentation.segment(frames, segmentation.settings_from(off), 3)
+    assert len(base["objects"]) == len(other["objects"]) > 0
+    for a, b in zip(base["objects"], other["objects"]):
+        assert np.array_equal(a["mask"], b["mask"]) and "snake_mask" not in b
+        assert (a["xi"], a["eta"], a["omega"]) == (b["xi"], b["eta"], b["omega"])
+    assert segmentation.FAITHFUL["assign"] == {"enabled": False}
+
+
+def test_flat_patch_joins_the_object_that_rings_it():
+    labels = np.zeros((40, 40), dtype=int)
+    labels[5:25, 5:25] = 1            # object 1, with a flat (undecided) face inside
+    labels[10:20, 10:20] = -1
+    labels[28:36, 28:40] = -1         # a flat patch of the static background at the border
+    valid = np.zeros((40, 40), dtype=bool)
+    valid[2:38, 2:38] = True
+    out = assignment.fill_undecided(labels, valid, 1, reach=2, share=0.6)
+    assert np.all(out[10:20, 10:20] == 1)
+    assert np.all(out[28:36, 28:38] == -1)
+
+
+def test_flat_face_behind_an_undecided_edge_joins_when_flat_patches_go_first():
+    labels = np.zeros((40, 40), dtype=int)
+    labels[5:30, 5:30] = 1            # object 1
+    labels[10:20, 10:20] = -1         # a flat face ...
+    labels[10:20, 5:10] = -1          # ... behind an undecided edge (with a gradient) ...
+    labels[10:38, 2:5] = -1           # ... that runs on into undecided background
+    labels[32:38, 2:38] = -1
+    flat = np.zeros((40, 40), dtype=bool)
+    flat[10:20, 10:20] = True
+    valid = np.zeros((40, 40), dtype=bool)
+    valid[2:38, 2:38] = True
+    plain = assignment.fill_undecided(labels, valid, 1, reach=2, share=0.6)
+    first = assignment.fill_undecided(labels, valid, 1, reach=2, share=0.6, flat=flat)
+    assert np.all(plain[10:20, 10:20] == -1)
+    assert np.all(first[10:20, 10:20] == 1)
+
+
+def test_rescue_finds_objects_that_the_disc_search_missed(two_objects):
+    frames, labels, truth = two_objects
+    data = disc_ea.disc_data(frames)
+    settings = segmentation.settings_from({**SMALL, "assign": ASSIGN})
+    pixels = segmentation.dense_to_pixels(data)
+    found = segmentation.rescued_objects(data, pixels, [], settings)
+    for item in truth["objects"]:
+        error = min(np.hypot(f["xi"] - item["xi"], f["eta"] - item["eta"]) for f in found)
+        assert error <= 2.0, (item, [(f["xi"], f["eta"]) for f in found])
+
+
+def test_rescue_finds_nothing_on_a_static_sequence(two_objects):
+    static = json.loads(json.dumps(TWO_OBJECTS))
+    for item in static["objects"]:
+        item["omega"] = 0.0
+    frames, _, _ = make_multi_sequence(static, rng=1)
+    data = disc_ea.disc_data(frames)
+    settings = {**assignment.DEFAULTS, **ASSIGN}
+    assert assignment.unexplained_regions(data, [], settings) == []

@@ -192,8 +192,7 @@ def run_scheduled(todo, blocks, *, jobs, expected, command_for, log_dir, echo=Tr
     return ``{name: (exit status, wall seconds, cpu seconds)}``.
 
     Ready experiments start longest chain first (:func:`critical_paths` of ``expected``
-    seconds). An experiment
-    whose dependency failed is not run (status ``None``).
+    seconds). An experiment whose dependency failed is not run (status ``None``).
     """
     pending = list(todo)
     priority = critical_paths(todo, blocks, expected)

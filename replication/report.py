@@ -169,4 +169,11 @@ def _regeneration_lines(record, slowest=6):
              "", "| experiment | wall (s) | CPU (s) |", "|---|---|---|"]
     for name in sorted(walls, key=walls.get, reverse=True)[:slowest]:
         lines.append(f"| `{name}` | {fmt(walls[name])} | {fmt(cpu.get(name, ''))} |")
+    if cpu and record.get("cpu_count"):
+        largest = max(cpu, key=cpu.get)
+        lines += ["", f"The run used {fmt(sum(cpu.values()))} s of CPU on "
+                  f"{record['cpu_count']} CPUs, so it could not take less than "
+                  f"{fmt(sum(cpu.values()) / record['cpu_count'])} s however it was scheduled;"
+                  f" `{largest}` alone used {fmt(cpu[largest])} s of it "
+                  f"({cpu[largest] / sum(cpu.values()):.0%})."]
     return lines

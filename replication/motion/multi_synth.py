@@ -1,6 +1,6 @@
 """Synthetic sequences for paper 2.3: several textured objects rotating on a static background.
 
-Built on :mod:`replication.motion.synth` (textures, C-shapes, camera degradation). Object
+Built on :mod:`replication.motion.synth` (textures, C-shapes, rendering, camera degradation). Object
 ``k`` (label ``k + 1``) has a frame-0 shape (:func:`~replication.motion.synth.c_shape_mask`
 keywords: a disc is ``r_inner = 0, gap_deg = 0``), its own texture, and turns about its own
 centre ``(xi_k, eta_k)`` at ``omega_k`` rad/frame (coordinates of spec/data-formats.md:
@@ -11,10 +11,9 @@ order, so a later object hides an earlier one where they meet.
 from __future__ import annotations
 
 import numpy as np
-from scipy import ndimage
 
 from replication.errors import check
-from replication.motion.synth import c_shape_mask, degrade, make_texture
+from replication.motion.synth import degrade, make_texture, render_objects
 
 SHAPE_KEYS = ("center", "r_inner", "r_outer", "gap_deg", "gap_dir_deg")
 
@@ -31,58 +30,6 @@ def check_object(where, item):
     check(0 <= item["shape"].get("r_inner", 0) < item["shape"].get("r_outer", 0),
           f"{where}.shape: r_inner={item['shape'].get('r_inner', 0)}, r_outer="
           f"{item['shape'].get('r_outer')}; expected 0 <= r_inner < r_outer")
-
-
-def render_objects(*, shape, objects, background_texture, n_frames, supersample=3):
-    """Frames and label masks of several objects turning about their own centres.
-
-    Parameters
-    ----------
-    shape : (H, W) tuple
-    objects : list of dict
-        Each ``{xi, eta, omega, mask_kwargs, texture}``: rotation centre and speed,
-        :func:`c_shape_mask` keywords of the frame-0 shape, and an ``(H, W)`` texture in
-        frame-0 coordinates.
-    background_texture : (H, W) ndarray
-    n_frames : int
-    supersample : int
-        Sub-pixel points per pixel and axis (a box camera).
-
-    Returns
-    -------
-    frames : (T, H, W) ndarray of float64
-    labels : (T, H, W) ndarray of uint8
-        ``k + 1`` where more than half of a pixel shows object ``k``, else 0.
-    """
-    height, width = shape
-    offsets = (np.arange(supersample) + 0.5) / supersample - 0.5
-    rows, cols = np.mgrid[0:height, 0:width].astype(float)
-    frames = np.zeros((n_frames, height, width))
-    coverage = np.zeros((len(objects) + 1, n_frames, height, width))
-    for oy in offsets:
-        for ox in offsets:
-            x, y = cols + ox, rows + oy
-            background = ndimage.map_coordinates(background_texture, [y, x], order=3,
-                                                  mode="reflect")
-            for t in range(n_frames):
-                value, owner = background.copy(), np.zeros(shape, dtype=np.int64)
-                for k, item in enumerate(objects):
-                    angle = -item["omega"] * t   # the point seen at (x, y) came from R(-omega t)
-                    dx, dy = x - item["xi"], y - item["eta"]
-                    x0 = item["xi"] + np.cos(angle) * dx - np.sin(angle) * dy
-                    y0 = item["eta"] + np.sin(angle) * dx + np.cos(angle) * dy
-                    inside = c_shape_mask(x0, y0, **item["mask_kwargs"])
-                    texture = ndimage.map_coordinates(item["texture"], [y0, x0], order=3,
-                                                      mode="reflect")
-                    value = np.where(inside, texture, value)
-                    owner = np.where(inside, k + 1, owner)
-                frames[t] += value
-                for k in range(len(objects) + 1):
-                    coverage[k, t] += owner == k
-    n_points = supersample * supersample
-    best = np.argmax(coverage, axis=0)
-    labels = np.where(np.take_along_axis(coverage, best[None], 0)[0] > n_points / 2, best, 0)
-    return frames / n_points, labels.astype(np.uint8)
 
 
 def make_multi_sequence(spec, *, rng):

@@ -133,28 +133,62 @@ def render_sequence(*, shape, xi, eta, omega, n_frames, c_shape, object_texture,
     labels : (T, H, W) ndarray of uint8
         1 where more than half of a pixel is covered by the object, else 0.
     """
+    item = {"xi": xi, "eta": eta, "omega": omega, "mask_kwargs": c_shape,
+            "texture": object_texture}
+    return render_objects(shape=shape, objects=[item], background_texture=background_texture,
+                          n_frames=n_frames, supersample=supersample)
+
+
+def render_objects(*, shape, objects, background_texture, n_frames, supersample=3):
+    """Frames and label masks of several objects turning about their own centres.
+
+    Parameters
+    ----------
+    shape : (H, W) tuple
+    objects : list of dict
+        Each ``{xi, eta, omega, mask_kwargs, texture}``: rotation centre and speed,
+        :func:`c_shape_mask` keywords of the frame-0 shape, and an ``(H, W)`` texture in
+        frame-0 coordinates.
+    background_texture : (H, W) ndarray
+    n_frames : int
+    supersample : int
+        Sub-pixel points per pixel and axis (a box camera).
+
+    Returns
+    -------
+    frames : (T, H, W) ndarray of float64
+    labels : (T, H, W) ndarray of uint8
+        ``k + 1`` where more than half of a pixel shows object ``k``, else 0.
+    """
     height, width = shape
     offsets = (np.arange(supersample) + 0.5) / supersample - 0.5
     rows, cols = np.mgrid[0:height, 0:width].astype(float)
     frames = np.zeros((n_frames, height, width))
-    coverage = np.zeros((n_frames, height, width))
+    coverage = np.zeros((len(objects) + 1, n_frames, height, width))
     for oy in offsets:
         for ox in offsets:
             x, y = cols + ox, rows + oy
             background = ndimage.map_coordinates(background_texture, [y, x], order=3,
                                                   mode="reflect")
             for t in range(n_frames):
-                # the object point seen at (x, y) in frame t came from R(-omega t) there
-                angle = -omega * t
-                x0 = xi + np.cos(angle) * (x - xi) - np.sin(angle) * (y - eta)
-                y0 = eta + np.sin(angle) * (x - xi) + np.cos(angle) * (y - eta)
-                inside = c_shape_mask(x0, y0, **c_shape)
-                texture = ndimage.map_coordinates(object_texture, [y0, x0], order=3,
-                                                  mode="reflect")
-                frames[t] += np.where(inside, texture, background)
-                coverage[t] += inside
+                value, owner = background.copy(), np.zeros(shape, dtype=np.int64)
+                for k, item in enumerate(objects):
+                    angle = -item["omega"] * t   # the point seen at (x, y) came from R(-omega t)
+                    dx, dy = x - item["xi"], y - item["eta"]
+                    x0 = item["xi"] + np.cos(angle) * dx - np.sin(angle) * dy
+                    y0 = item["eta"] + np.sin(angle) * dx + np.cos(angle) * dy
+                    inside = c_shape_mask(x0, y0, **item["mask_kwargs"])
+                    texture = ndimage.map_coordinates(item["texture"], [y0, x0], order=3,
+                                                      mode="reflect")
+                    value = np.where(inside, texture, value)
+                    owner = np.where(inside, k + 1, owner)
+                frames[t] += value
+                for k in range(len(objects) + 1):
+                    coverage[k, t] += owner == k
     n_points = supersample * supersample
-    return frames / n_points, (coverage / n_points > 0.5).astype(np.uint8)
+    best = np.argmax(coverage, axis=0)
+    labels = np.where(np.take_along_axis(coverage, best[None], 0)[0] > n_points / 2, best, 0)
+    return frames / n_points, labels.astype(np.uint8)
 
 
 def degrade(frames, *, noise_sigma=0.0, bits=None, rng=None):

@@ -1,10 +1,13 @@
 """The generator: conventions of spec/data-formats.md and determinism."""
 
+import json
+
 import numpy as np
 import pytest
 
 from replication.errors import InputError
 from replication.motion.synth import degrade, make_sequence, photo_texture
+from tests.test_cli import ROOT, run_cli
 
 from .conftest import small_spec
 
@@ -43,3 +46,12 @@ def test_degrade_quantises_and_adds_noise():
 def test_photo_texture_refuses_unknown_name():
     with pytest.raises(InputError, match="texture 'nosuch': unknown photograph"):
         photo_texture("nosuch", (8, 8))
+
+
+def test_committed_sequences_are_regenerated_identically(tmp_path):
+    committed = json.loads((ROOT / "synthetic_data/motion/manifest.json").read_text())
+    done = run_cli("experiment=motion_data", f"out={tmp_path / 'out'}",
+                   f"data_dir={tmp_path / 'data'}")
+    assert done.returncode == 0, done.stderr
+    fresh = json.loads((tmp_path / "data" / "manifest.json").read_text())
+    assert fresh["files"] == committed["files"]

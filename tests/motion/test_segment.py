@@ -1,7 +1,6 @@
 """Rigid-motion segmentation (paper 2.3): EA with sharing, radial snakes, the pipeline."""
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -10,9 +9,8 @@ from replication.errors import InputError
 from replication.motion import assignment, disc_ea, segmentation, snakes
 from replication.motion.multi_synth import make_multi_sequence
 from replication.motion.segment_experiments import score_objects
-from tests.test_cli import run_cli
+from tests.test_cli import assert_regenerated_identically, run_cli
 
-ROOT = Path(__file__).resolve().parents[2]
 
 TWO_OBJECTS = {
     "shape": [128, 128], "n_frames": 2, "supersample": 2, "noise_sigma": 1 / 255,
@@ -178,12 +176,8 @@ def test_generator_is_deterministic_and_labels_follow_the_objects(two_objects):
 
 
 def test_committed_multi_object_data_is_regenerated_identically(tmp_path):
-    committed = json.loads((ROOT / "synthetic_data/motion_multi/manifest.json").read_text())
-    done = run_cli("experiment=motion_multi_data", f"out={tmp_path / 'out'}",
-                   f"data_dir={tmp_path / 'data'}")
-    assert done.returncode == 0, done.stderr
-    fresh = json.loads((tmp_path / "data" / "manifest.json").read_text())
-    assert fresh["files"] == committed["files"]
+    assert_regenerated_identically("motion_multi_data", "synthetic_data/motion_multi",
+                                   tmp_path)
 
 
 def test_study_runs_on_one_sequence_with_tiny_settings(tmp_path):

@@ -1,13 +1,11 @@
 """The generator: conventions of spec/data-formats.md and determinism."""
 
-import json
-
 import numpy as np
 import pytest
 
 from replication.errors import InputError
 from replication.motion.synth import degrade, make_sequence, photo_texture
-from tests.test_cli import ROOT, run_cli
+from tests.test_cli import assert_regenerated_identically
 
 from .conftest import small_spec
 
@@ -49,9 +47,4 @@ def test_photo_texture_refuses_unknown_name():
 
 
 def test_committed_sequences_are_regenerated_identically(tmp_path):
-    committed = json.loads((ROOT / "synthetic_data/motion/manifest.json").read_text())
-    done = run_cli("experiment=motion_data", f"out={tmp_path / 'out'}",
-                   f"data_dir={tmp_path / 'data'}")
-    assert done.returncode == 0, done.stderr
-    fresh = json.loads((tmp_path / "data" / "manifest.json").read_text())
-    assert fresh["files"] == committed["files"]
+    assert_regenerated_identically("motion_data", "synthetic_data/motion", tmp_path)

@@ -11,7 +11,6 @@ from replication.motion.multi_synth import make_multi_sequence
 from replication.motion.segment_experiments import score_objects
 from tests.test_cli import assert_regenerated_identically, run_cli
 
-
 TWO_OBJECTS = {
     "shape": [128, 128], "n_frames": 2, "supersample": 2, "noise_sigma": 1 / 255,
     "background_texture": {"kind": "procedural", "scale": 1.5},

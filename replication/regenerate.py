@@ -91,6 +91,12 @@ def stale_experiments(entries, results, provenance, keys, cache, *, force=False)
     earlier, interrupted run. Without a cache (a fresh clone) the committed results
     whose provenance matches are current.
     """
+    current = {}
+    for _, name, _ in entries:
+        result = read_result(results / name / "result.json")
+        current[name] = (not force and result is not None
+                         and result.get("provenance") == provenance[name]
+                         and _cached(cache, name).get("key", keys[name]) == keys[name])
     stale = set()
     changed = True
     while changed:  # to a fixed point: dependencies may come later in report order
@@ -98,11 +104,7 @@ def stale_experiments(entries, results, provenance, keys, cache, *, force=False)
         for _, name, block in entries:
             if name in stale:
                 continue
-            result = read_result(results / name / "result.json")
-            entry = _cached(cache, name)
-            current = (result is not None and result.get("provenance") == provenance[name]
-                       and entry.get("key", keys[name]) == keys[name])
-            if force or not current or any(d in stale for d in block.get("depends_on", [])):
+            if not current[name] or any(d in stale for d in block.get("depends_on", [])):
                 stale.add(name)
                 changed = True
     return stale

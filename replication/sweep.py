@@ -60,28 +60,30 @@ def overrides_of(run_dir):
     return pairs
 
 
-def _result_files(sweep_dir):
-    return sorted(Path(sweep_dir).rglob("result.json"))
+def load_results(sweep_dir):
+    """``(run folder relative to sweep_dir, result dict)`` for every ``result.json`` below
+    ``sweep_dir``, sorted by folder."""
+    return [(path.parent.relative_to(sweep_dir), json.loads(path.read_text()))
+            for path in sorted(Path(sweep_dir).rglob("result.json"))]
 
 
-def gather(sweep_dir):
-    """Rows (dicts) for every ``result.json`` below ``sweep_dir``, sorted by folder."""
+def gather(sweep_dir, results=None):
+    """Rows (dicts) for every ``result.json`` below ``sweep_dir`` (or for ``results``, as
+    :func:`load_results` gives them), sorted by folder."""
     rows = []
-    for path in _result_files(sweep_dir):
-        result = json.loads(path.read_text())
-        run = path.parent.relative_to(sweep_dir)
+    for run, result in load_results(sweep_dir) if results is None else results:
         row = {"run": str(run), **overrides_of(run)}
         row.update(flatten({k: v for k, v in result.items() if k not in SKIP}))
         rows.append(row)
     return rows
 
 
-def configured_metrics(sweep_dir):
-    """The ``sweep_metrics`` of the runs' resolved configs, in order, without repeats."""
+def configured_metrics(results):
+    """The ``sweep_metrics`` of the runs' resolved configs (``results`` as
+    :func:`load_results` gives them), in order, without repeats."""
     metrics = []
-    for path in _result_files(sweep_dir):
-        config = json.loads(path.read_text()).get("config") or {}
-        for name in config.get("sweep_metrics") or []:
+    for _, result in results:
+        for name in (result.get("config") or {}).get("sweep_metrics") or []:
             if name not in metrics:
                 metrics.append(str(name))
     return metrics
@@ -225,13 +227,14 @@ def main(argv=None):
     if not sweep_dir.is_dir():
         print(f"error: {sweep_dir}: no such folder", file=sys.stderr)
         return 2
-    rows = gather(sweep_dir)
+    results = load_results(sweep_dir)
+    rows = gather(sweep_dir, results)
     if not rows:
         print(f"error: {sweep_dir}: no result.json below it", file=sys.stderr)
         return 2
     metrics = args.metric
     if not metrics:  # the config's list is a default: plot those these runs have
-        metrics = configured_metrics(sweep_dir)
+        metrics = configured_metrics(results)
         numeric = numeric_columns(rows)
         for metric in [m for m in metrics if m not in numeric]:
             print(f"sweep_metrics: {metric} is not a numeric column of these results; "

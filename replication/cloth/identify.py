@@ -201,8 +201,7 @@ class PaperEA:
 
 DEFAULT_BOUNDS = {"rest": [0.8, 1.2], "K": [0.1, 10.0], "tau": [0.01, 1.0]}
 DEFAULT_STRUCTURED = {
-    "regression": {"first": 1, "stride": 5, "trim_rounds": 6, "trim_factor": 10.0,
-                   "frame_quantile": 0.3, "smooth_windows": [0, 31]},
+    "regression": {"first": 1, "stride": 5},
     "tau_scan": {"n_grid": 100, "refine_evals": 40},
     "refine": {"box": 0.02, "ea": {"pop_size": 20, "generations": 10}},
 }

@@ -1,65 +1,25 @@
-"""The effect library: physical forces with few parameters, as plug-ins of the cloth step.
+"""The effect library: physical forces, as plug-ins of the identification engine.
 
-Each effect is linear in a few coefficients ``theta`` once the base model is known: its
+Each effect is linear in its coefficients ``theta`` once the base model is known: its
 extra acceleration (under the data's nominal mass) is ``basis(frames) @ theta``, and the
 extra force handed to :func:`replication.cloth.model.step` is the nominal mass times that.
-``physical`` turns ``theta`` into the effect's own parameters.
+An :class:`Effect` is a :class:`replication.cloth.regression.Plugin` (``name``, ``basis``,
+``needs_base``), so base model and effects are fitted jointly by one engine.
+``physical`` turns ``theta`` into the effect's own parameters and says where it acts.
 
-Library (issue 6): linear air damping, quadratic drag, Provot's normal fluid force with a
-wind velocity, constant body force, anisotropic stiffness (warp and weft differ),
-non-uniform mass (inverse mass linear over the sheet) and spring (dashpot) damping.
+Library: linear air damping, quadratic drag, Provot's normal fluid force (area-weighted
+normals) with a wind velocity, constant body force, stiffness that differs by direction
+(warp and weft), a mass profile over the sheet (per row and per column: gradients, steps,
+bands) and spring (dashpot) damping.
 """
 
 from __future__ import annotations
 
-from functools import cached_property
 from typing import Callable, NamedTuple
 
 import numpy as np
 
-from replication.discrepancy import geometry
-
-
-class Frames:
-    """States ``(x, v)`` of some frames with the quantities effects are built from.
-
-    Parameters
-    ----------
-    x, v : (F, P, 3) ndarray
-    ops : geometry.MeshOperators
-    mass : (P,) ndarray
-        Nominal (file) mass per particle.
-    rest, k : (6,) ndarray
-        Current base-model rest lengths and stiffnesses (for terms built on spring forces).
-    damping : float
-        Known linear damping of the data file.
-    """
-
-    def __init__(self, x, v, ops, mass, rest, k, damping=0.0):
-        self.x = x
-        self.v = v
-        self.ops = ops
-        self.mass = mass
-        self.rest = np.asarray(rest, dtype=float)
-        self.k = np.asarray(k, dtype=float)
-        self.damping = float(damping)
-
-    @cached_property
-    def sums(self):
-        return geometry.spring_sums(self.ops, self.x)
-
-    @cached_property
-    def normals(self):
-        return geometry.normals(self.x, self.ops.n)
-
-    @cached_property
-    def inner_force(self):
-        """Spring forces plus known damping at the base parameters, (F, P, 3)."""
-        A, B = self.sums
-        return geometry.spring_force(A, B, self.rest, self.k) - self.damping * self.v
-
-    def per_mass(self, force):
-        return force / self.mass[None, :, None]
+from replication.cloth import geometry
 
 
 def _linear_damping(q):
@@ -72,10 +32,13 @@ def _quadratic_drag(q):
 
 
 def _normal_fluid(q):
-    nrm = q.normals
-    normal_speed = np.sum(nrm * q.v, axis=2, keepdims=True)
-    columns = [q.per_mass(-normal_speed * nrm)]
-    columns += [q.per_mass(nrm[..., c:c + 1] * nrm) for c in range(3)]
+    # F = C A (n.(u - v)) n with N = A n the area-weighted normal: C (N.(u - v)) N / |N|
+    area_normal = q.area_normals
+    unit = area_normal / np.maximum(np.linalg.norm(area_normal, axis=2, keepdims=True),
+                                    1e-300)
+    normal_speed = np.sum(area_normal * q.v, axis=2, keepdims=True)
+    columns = [q.per_mass(-normal_speed * unit)]
+    columns += [q.per_mass(area_normal[..., c:c + 1] * unit) for c in range(3)]
     return np.stack(columns, axis=-1)
 
 
@@ -87,17 +50,28 @@ def _body_force(q):
 
 
 def _anisotropic_stiffness(q):
+    # extra stiffness of the springs along j (types 0, 4) and along i (types 1, 5)
     A, B = q.sums
     rest = q.rest
-    warp = A[0] - rest[0] * B[0] + A[4] - rest[4] * B[4]
-    weft = A[1] - rest[1] * B[1] + A[5] - rest[5] * B[5]
-    return q.per_mass(warp - weft)[..., None]
+    along_j = A[0] - rest[0] * B[0] + A[4] - rest[4] * B[4]
+    along_i = A[1] - rest[1] * B[1] + A[5] - rest[5] * B[5]
+    return np.stack([q.per_mass(along_j), q.per_mass(along_i)], axis=-1)
+
+
+def profile_indicators(n):
+    """Centred row and column indicators, (P, 2 (n - 1)): column ``r < n-1`` is
+    ``1[i = r] - 1/n``, then the same for ``j``. Centred, because a uniform change of the
+    inverse mass is a change of every stiffness (not identifiable apart from K)."""
+    i, j = np.divmod(np.arange(n * n), n)
+    rows = (i[:, None] == np.arange(n - 1)[None, :]) - 1.0 / n
+    cols = (j[:, None] == np.arange(n - 1)[None, :]) - 1.0 / n
+    return np.hstack([rows, cols]).astype(float)
 
 
 def _nonuniform_mass(q):
+    # inverse mass (1 + beta_p) / m with beta_p = profile_row(i) + profile_col(j)
     inner = q.per_mass(q.inner_force)
-    return np.stack([q.ops.s_i[None, :, None] * inner, q.ops.s_j[None, :, None] * inner],
-                    axis=-1)
+    return inner[..., None] * profile_indicators(q.ops.n)[None, :, None, :]
 
 
 def _spring_damping(q):
@@ -116,15 +90,38 @@ def _fluid_physical(theta, base):
 
 def _anisotropy_physical(theta, base):
     K = float(np.mean(base["k"]))
-    return {"a": float(theta[0]) / K}
+    k_j, k_i = K + float(theta[0]), K + float(theta[1])
+    return {"k_along_j": k_j, "k_along_i": k_i, "ratio_j_over_i": k_j / k_i,
+            "where": "springs along j (types 0, 4) vs along i (types 1, 5)"}
+
+
+def mass_map(theta, n):
+    """Relative mass ``m_p / m`` per particle, (n, n), from the profile coefficients."""
+    inverse = 1.0 + profile_indicators(n) @ np.asarray(theta, dtype=float)
+    return (1.0 / np.maximum(inverse, 1e-6)).reshape(n, n)
+
+
+def _mass_physical(theta, base, *, threshold=0.1):
+    n = len(theta) // 2 + 1
+    relative = mass_map(theta, n)
+    rows = relative.mean(axis=1)
+    cols = relative.mean(axis=0)
+    return {"relative_mass": relative.round(4).tolist(),
+            "rows_differing": [int(r) for r in np.flatnonzero(np.abs(rows / np.median(rows)
+                                                                      - 1) > threshold)],
+            "columns_differing": [int(c) for c in np.flatnonzero(np.abs(cols / np.median(cols)
+                                                                         - 1) > threshold)],
+            "where": f"rows and columns whose mean relative mass differs from the median by "
+                     f"more than {threshold:.0%} (mass relative to the file's, up to a common "
+                     "factor that is not identifiable apart from K)"}
 
 
 class Effect(NamedTuple):
-    """One library entry.
+    """One library entry, a :class:`~replication.cloth.regression.Plugin` of the engine.
 
     ``basis(q) -> (F, P, 3, m)`` extra acceleration per unit coefficient; ``physical(theta,
     base) -> dict``; ``nonnegative`` : coefficient indices that must be >= 0 for the force
-    to be physical (one-sided tests); ``groups`` : physical keys compared to the truth.
+    to be physical (one-sided tests); ``needs_base``: columns depend on the base model.
     """
 
     name: str
@@ -133,6 +130,11 @@ class Effect(NamedTuple):
     physical: Callable
     nonnegative: tuple
     description: str
+    needs_base: bool = False
+
+
+def _profile_names(n=17):
+    return tuple(f"row{r}" for r in range(n - 1)) + tuple(f"col{c}" for c in range(n - 1))
 
 
 LIBRARY = {
@@ -143,16 +145,17 @@ LIBRARY = {
                "quadratic drag F = -c_q |v| v"),
         Effect("normal_fluid", ("C", "C*u_x", "C*u_y", "C*u_z"), _normal_fluid,
                _fluid_physical, (0,),
-               "Provot's fluid force F = C (n.(u - v)) n with wind velocity u"),
+               "Provot's fluid force F = C A (n.(u - v)) n, area-weighted normals, wind u"),
         Effect("body_force", ("f_x", "f_y", "f_z"), _body_force,
                lambda theta, base: {"f": [float(t) for t in theta]}, (),
                "constant body force F = f"),
-        Effect("anisotropic_stiffness", ("K*a",), _anisotropic_stiffness,
+        Effect("anisotropic_stiffness", ("dk_j", "dk_i"), _anisotropic_stiffness,
                _anisotropy_physical, (),
-               "warp/weft stiffness k_j = K (1 + a), k_i = K (1 - a) (types 0,4 vs 1,5)"),
-        Effect("nonuniform_mass", ("beta_i", "beta_j"), _nonuniform_mass,
-               lambda theta, base: {"beta_i": float(theta[0]), "beta_j": float(theta[1])},
-               (), "inverse mass linear over the sheet: m / m_p = 1 + beta_i s_i + beta_j s_j"),
+               "stiffness by direction: k = K + dk_j along j (types 0, 4), K + dk_i along i "
+               "(types 1, 5)", True),
+        Effect("nonuniform_mass", _profile_names(), _nonuniform_mass, _mass_physical, (),
+               "mass profile: inverse mass (1 + row(i) + col(j)) / m per particle "
+               "(gradients, steps, bands)", True),
         Effect("spring_damping", ("c_s",), _spring_damping, _scalar("c_s"), (0,),
                "dashpot along every spring F_a = c_s ((v_b - v_a).u) u"),
     )
@@ -166,21 +169,3 @@ def get_effect(name):
         raise ValueError(f"effect {name!r} is not in the library; expected one of "
                          + ", ".join(EFFECT_NAMES))
     return LIBRARY[name]
-
-
-def extra_force(terms, q):
-    """Total extra force of fitted effect terms on the frames ``q``.
-
-    Parameters
-    ----------
-    terms : list of (name, theta)
-    q : Frames
-
-    Returns
-    -------
-    (F, P, 3) ndarray (zeros when ``terms`` is empty)
-    """
-    total = np.zeros_like(q.x)
-    for name, theta in terms:
-        total += get_effect(name).basis(q) @ np.asarray(theta, dtype=float)
-    return total * q.mass[None, :, None]

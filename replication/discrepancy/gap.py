@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from replication.cloth.model import step
-from replication.discrepancy import effects as fx
+from replication.cloth.regression import StateFrames, extra_force
 from replication.discrepancy.residuals import residuals
 
 SMOOTH_HALF = 3
@@ -64,9 +64,9 @@ def rollout_error(data, fit, held_out, *, start="recorded"):
     params = fit.base.params(len(starts))
     total, count = 0.0, 0
     for lag in range(1, horizon + 1):
-        q = fx.Frames(x, v, data.ops, data.mass, fit.base.rest, fit.base.k,
-                      data.scene.damping)
-        x, v = step(x, v, params, data.scene, fx.extra_force(fit.terms, q))
+        q = StateFrames(x, v, data.ops, data.mass, fit.base.rest, fit.base.k,
+                        data.scene.damping)
+        x, v = step(x, v, params, data.scene, extra_force(fit.terms, q))
         if not np.all(np.isfinite(x)):
             return float("inf")
         if lag <= SMOOTH_HALF:

@@ -15,7 +15,7 @@ from replication.cloth.io import trajectory_from_rollout
 from replication.cloth.model import (
     ClothParams, initial_state, make_scene, params_from_vectors, reference_vector, step,
 )
-from replication.discrepancy import geometry
+from replication.cloth import geometry
 
 OUTSIDE_EFFECTS = ("gust",)
 # log-uniform ranges of each effect's magnitude (per unit nominal mass where a force)

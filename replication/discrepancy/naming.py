@@ -1,7 +1,8 @@
-"""Naming the missing effect: score candidates, confirm by refitting, decide.
+"""Naming missing effects: score candidates, confirm by refitting, decide.
 
-Scores: for each library effect, the base model plus that effect is solved by the
-instrumental-variable regression (one set of cluster sums serves every candidate) and its
+Scores: for each library effect not yet named, the base model plus the effects named so
+far plus that candidate is solved by the engine's instrumental-variable regression (one
+set of cluster sums serves every candidate) and its
 coefficients get a cluster-robust Wald statistic, one-sided (zero) when a coefficient that
 must be >= 0 comes out negative (its null is then a 50:50 mixture, so the chi2 threshold is
 conservative). A candidate is significant above the chi2 quantile at ``alpha`` divided by
@@ -18,8 +19,8 @@ from __future__ import annotations
 import numpy as np
 from scipy import stats
 
+from replication.cloth.regression import cluster_sums, design, iv_solve, n_base, usable_frames
 from replication.discrepancy import effects as fx
-from replication.discrepancy.fit import cluster_sums, design, iv_solve, n_base, usable_frames
 
 
 def candidate_names(model):
@@ -38,46 +39,52 @@ def wald(theta, cov, nonnegative):
         return 0.0
 
 
-def score_candidates(data, base_fit, frames, *, model="5", alpha=1e-3, n_subsamples=40,
-                     rng=None, block=5):
-    """Wald statistics, thresholds and stability of every candidate effect.
+def score_candidates(data, fit, frames, *, selected=(), model="5", alpha=1e-3,
+                     n_subsamples=40, rng=None, block=5):
+    """Wald statistics, thresholds and stability of every candidate effect not in
+    ``selected``, each added to the base model and the ``selected`` effects.
 
     Returns
     -------
-    dict name -> {wald, df, threshold, significant, log10_p, stability, theta}
+    dict name -> {wald, df, threshold, significant, log10_p, stability, theta, base_theta}
+    (empty when ``fit`` was not made by regression: nothing to test on).
     """
+    if fit.theta is None:
+        return {}
     rng = np.random.default_rng(rng)
-    names = candidate_names(model)
+    selected = [fx.get_effect(name) for name in selected]
+    names = [name for name in candidate_names(model)
+             if name not in {effect.name for effect in selected}]
     frames = usable_frames(frames, data.n_frames)
-    columns, slices = design(data, base_fit.base, names, model)
-    G, hz, labels = cluster_sums(columns, data.target, frames, base_fit.mask, block=block)
+    plugins = selected + [fx.get_effect(name) for name in names]
+    columns, slices = design(data, fit.base, plugins, model)
+    G, hz, labels, _ = cluster_sums(columns, data.target, frames, fit.mask, block=block)
     nb = n_base(model)
+    kept = np.r_[np.arange(nb)] if not selected else np.r_[
+        np.arange(nb), np.concatenate([np.arange(slices[e.name].start, slices[e.name].stop)
+                                       for e in selected])]
+    n_kept = kept.size
 
     def solve(name, clusters=None):
-        cols = np.r_[np.arange(nb), np.arange(slices[name].start, slices[name].stop)]
+        cols = np.r_[kept, np.arange(slices[name].start, slices[name].stop)]
         theta, cov = iv_solve(G, hz, cols, clusters, labels)
         effect = fx.get_effect(name)
-        return theta[nb:], cov[nb:, nb:], wald(theta[nb:], cov[nb:, nb:], effect.nonnegative)
+        return theta, cov, wald(theta[n_kept:], cov[n_kept:, n_kept:], effect.nonnegative)
 
     out = {}
     for name in names:
         theta, _, w = solve(name)
         df = slices[name].stop - slices[name].start
-        threshold = float(stats.chi2.isf(alpha / len(names), df))
+        threshold = float(stats.chi2.isf(alpha / len(candidate_names(model)), df))
         out[name] = {"wald": w, "df": df, "threshold": threshold,
                      "significant": bool(w > threshold),
                      "log10_p": float(stats.chi2.logsf(w, df) / np.log(10)),
-                     "theta": theta.tolist(), "stability": 0.0}
+                     "theta": theta[n_kept:].tolist(), "base_theta": theta[:nb].tolist(),
+                     "stability": 0.0}
     n_clusters = G.shape[0]
     for _ in range(n_subsamples):
         half = np.sort(rng.choice(n_clusters, size=max(n_clusters // 2, 1), replace=False))
         for name in names:
-            _, _, w = solve(name, half)
-            if w > out[name]["threshold"]:
+            if out[name]["significant"] and solve(name, half)[2] > out[name]["threshold"]:
                 out[name]["stability"] += 1.0 / n_subsamples
-    for name in names:
-        theta, _, _ = solve(name)
-        full = iv_solve(G, hz, np.r_[np.arange(nb), np.arange(slices[name].start,
-                                                              slices[name].stop)])[0]
-        out[name]["base_theta"] = full[:nb].tolist()
     return out

@@ -15,17 +15,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from replication.discrepancy import effects as fx
-from replication.discrepancy.fit import one_step_predictions
-from replication.discrepancy.geometry import normals
+from replication.cloth import regression
+from replication.cloth.geometry import normals
+
+# Floor of the noise standard deviation (units of h): on noise-free data the residuals of
+# a right model are round-off, and structure is measured against this floor instead.
+SIGMA_FLOOR_H = 1e-7
 
 
 def residuals(data, fit, frames):
-    """One-step residuals ``x_{t+1} - x^_{t+1}`` (F, P, 3), zero on pinned particles."""
-    frames = np.asarray(frames)
-    r = data.x[frames + 1] - one_step_predictions(data, fit.base, fit.terms, frames)
-    r[:, ~data.free] = 0.0
-    return r
+    """One-step residuals ``x_{t+1} - x^_{t+1}`` (F, P, 3) of a fit, zero on pinned
+    particles."""
+    return regression.residuals(data, fit.base, fit.terms, frames)
 
 
 def runs(frames):
@@ -35,16 +36,20 @@ def runs(frames):
     return np.split(np.arange(frames.size), breaks)
 
 
-def noise_sigma(r, frames, free):
-    """Position-noise standard deviation from lag-0/lag-1 autocovariances of residuals."""
+def noise_sigma(r, frames, free, mask=None):
+    """Position-noise standard deviation from lag-0/lag-1 autocovariances of residuals
+    (over particle-frames in ``mask`` (F, P) when given)."""
+    use = np.ones(r.shape[:2], dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
+    use = use & free[None, :]
     g0, g1, count0, count1 = 0.0, 0.0, 0, 0
     for idx in runs(frames):
-        block = r[idx][:, free]
-        g0 += float(np.sum(block * block))
-        count0 += block.size
+        block, keep = r[idx], use[idx]
+        g0 += float(np.sum(block[keep] ** 2))
+        count0 += 3 * int(keep.sum())
         if len(idx) > 1:
-            g1 += float(np.sum(block[1:] * block[:-1]))
-            count1 += block[1:].size
+            both = keep[1:] & keep[:-1]
+            g1 += float(np.sum((block[1:] * block[:-1])[both]))
+            count1 += 3 * int(both.sum())
     gamma0 = g0 / max(count0, 1)
     gamma1 = g1 / max(count1, 1)
     return float(np.sqrt(max(gamma0 - gamma1, 0.0) / 10.0))
@@ -57,26 +62,32 @@ def patch_labels(n, patch):
     return (i // patch) * per_row + (j // patch)
 
 
-def window_sums(r, frames, window):
+def window_sums(r, frames, window, mask=None):
     """Sums of residuals over non-overlapping windows of consecutive frames.
 
     Returns
     -------
-    sums : (W, P, 3) ndarray; starts : (W,) first frame of each window
+    sums : (W, P, 3) ndarray; starts : (W,) first frame of each window; complete : (W, P)
+    bool, the particle is in ``mask`` (F, P) at every frame of the window (all True
+    without a mask): only then do the noise terms of the sum telescope.
     """
-    sums, starts = [], []
+    sums, starts, complete = [], [], []
     frames = np.asarray(frames)
     for idx in runs(frames):
         for k in range(len(idx) // window):
             chunk = idx[k * window:(k + 1) * window]
             sums.append(r[chunk].sum(axis=0))
             starts.append(int(frames[chunk[0]]))
+            complete.append(np.ones(r.shape[1], dtype=bool) if mask is None
+                            else np.all(mask[chunk], axis=0))
     if not sums:
-        return np.zeros((0,) + r.shape[1:]), np.zeros(0, dtype=int)
-    return np.stack(sums), np.array(starts)
+        return (np.zeros((0,) + r.shape[1:]), np.zeros(0, dtype=int),
+                np.zeros((0, r.shape[1]), dtype=bool))
+    return np.stack(sums), np.array(starts), np.stack(complete)
 
 
-def structure(r, frames, free, n, *, window=10, patch=4, directions=None):
+def structure(r, frames, free, n, *, window=10, patch=4, directions=None, floor=0.0,
+              mask=None):
     """Structure statistic ``Q`` of residuals and its break-downs.
 
     Parameters
@@ -86,39 +97,62 @@ def structure(r, frames, free, n, *, window=10, patch=4, directions=None):
     free : (P,) bool
     n : int
     directions : (F, P, 3) unit vectors, optional (e.g. normals) for a normal/tangential split
+    floor : float
+        Smallest noise standard deviation used (noise-free data).
+    mask : (F, P) bool, optional
+        Particle-frames outside the deformation constraint: a window sum counts only where
+        the particle is in the mask at every frame of the window. The constraint's
+        residuals are sensitive to tiny errors of ``tau`` and would dominate ``Q``.
 
     Returns
     -------
     dict with ``sigma``, ``Q`` (all), ``Q_by_window`` (W,), ``Q_by_patch`` (patches,),
     ``Q_by_component`` {x, y, z}, and ``Q_normal``/``Q_tangential`` when ``directions``.
     """
-    sigma = noise_sigma(r, frames, free)
-    sums, starts = window_sums(r, frames, window)
+    if mask is not None and not np.any(mask):
+        mask = None   # a fit through the constraint has no mask: use everything
+    sigma = max(noise_sigma(r, frames, free, mask), floor)
+    sums, starts, complete = window_sums(r, frames, window, mask)
     labels = patch_labels(n, patch)[free]
     n_patch = labels.max() + 1
-    counts = np.bincount(labels, minlength=n_patch).astype(float)
+    complete = complete[:, free]
     var = 4.0 * sigma ** 2 + 1e-300
 
-    def q_of(s):  # s: (W, Pfree, c) -> (W, patch, c) normalised squares
-        means = np.stack([np.stack([np.bincount(labels, s[w, :, c], n_patch) / counts
+    def q_of(s):  # s: (W, Pfree, c) -> (W, patch, c) normalised squares, weights (W, patch)
+        if not s.size:
+            return np.zeros((0, n_patch, 1)), np.zeros((0, n_patch))
+        counts = np.stack([np.bincount(labels, complete[w], n_patch)
+                           for w in range(s.shape[0])])
+        means = np.stack([np.stack([np.bincount(labels, s[w, :, c] * complete[w], n_patch)
                                     for c in range(s.shape[2])], axis=-1)
-                          for w in range(s.shape[0])]) if s.size else np.zeros((0, n_patch, 1))
-        return means ** 2 * counts[None, :, None] / var
+                          for w in range(s.shape[0])]) / np.maximum(counts, 1)[..., None]
+        return means ** 2 * counts[..., None] / var, (counts > 0).astype(float)
 
-    q = q_of(sums[:, free])
-    out = {"sigma": sigma, "Q": float(q.mean()) if q.size else 0.0,
-           "Q_by_window": q.mean(axis=(1, 2)).tolist(), "window_starts": starts.tolist(),
-           "Q_by_patch": q.mean(axis=(0, 2)).tolist(),
-           "Q_by_component": dict(zip("xyz", q.mean(axis=(0, 1)).tolist()))}
+    def mean_over(q, weight, axis):
+        w = np.broadcast_to(weight[..., None], q.shape)
+        total = np.sum(w, axis=axis)
+        return np.sum(q * w, axis=axis) / np.maximum(total, 1e-300)
+
+    q, weight = q_of(sums[:, free])
+    has = weight.sum() > 0
+    out = {"sigma": sigma, "Q": float(np.sum(q * weight[..., None]) / (3 * weight.sum()))
+           if has else 0.0,
+           "Q_by_window": mean_over(q, weight, (1, 2)).tolist() if has else [],
+           "window_starts": starts.tolist(),
+           "Q_by_patch": mean_over(q, weight, (0, 2)).tolist() if has else [],
+           "Q_by_component": dict(zip("xyz", mean_over(q, weight, (0, 1)).tolist()))
+           if has else {}}
     if directions is not None:
-        dsum, _ = window_sums(np.sum(r * directions, axis=2, keepdims=True), frames, window)
-        qn = q_of(dsum[:, free])
-        out["Q_normal"] = float(qn.mean()) if qn.size else 0.0
-        out["Q_tangential"] = float((q.sum(axis=2) - qn[..., 0]).mean() / 2) if q.size else 0.0
+        dsum, _, _ = window_sums(np.sum(r * directions, axis=2, keepdims=True), frames, window,
+                                 mask)
+        qn, _ = q_of(dsum[:, free])
+        out["Q_normal"] = float(np.sum(qn[..., 0] * weight) / weight.sum()) if has else 0.0
+        out["Q_tangential"] = (float(np.sum((q.sum(axis=2) - qn[..., 0]) * weight)
+                                     / (2 * weight.sum())) if has else 0.0)
     return out
 
 
-def where(data, fit, frames, *, window=10, patch=4):
+def where(data, fit, frames, *, window=10, patch=4, mask=None):
     """Localisation summary of the residuals of ``fit`` on ``frames`` (JSON-ready).
 
     Maps over the mesh (RMS of window sums per particle, in units of the noise floor), over
@@ -129,18 +163,18 @@ def where(data, fit, frames, *, window=10, patch=4):
     frames = np.asarray(frames)
     r = residuals(data, fit, frames)
     nrm = normals(data.x[frames], data.ops.n)
+    mask = fit.mask[frames] if mask is None else mask
     summary = structure(r, frames, data.free, data.ops.n, window=window, patch=patch,
-                        directions=nrm)
+                        directions=nrm, floor=SIGMA_FLOOR_H * data.h, mask=mask)
     sigma = summary["sigma"]
-    sums, _ = window_sums(r, frames, window)
+    sums, _, _ = window_sums(r, frames, window)
     per_particle = np.sqrt(np.mean(np.sum(sums ** 2, axis=2), axis=0) / 3.0) \
         / max(2.0 * sigma, 1e-300)
-    vertical, _ = window_sums(r[..., 2:3], frames, window)
+    vertical, _, _ = window_sums(r[..., 2:3], frames, window)
     dt = data.scene.dt
     accel = r / dt ** 2
     lagged_v = data.v[np.maximum(frames - 2, 0)]
-    q = fx.Frames(data.x[frames], data.v[frames], data.ops, data.mass, fit.base.rest,
-                  fit.base.k)
+    q = regression.state_frames(data, fit.base, frames)
     strain_force = np.linalg.norm(q.inner_force, axis=2)
     free = data.free
 

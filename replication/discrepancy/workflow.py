@@ -1,20 +1,38 @@
-"""The discrepancy workflow on one trajectory: fit, localise, name, add, measure the gap."""
+"""The discrepancy workflow on one trajectory: fit, localise, name, add, measure the gap.
+
+Steps, each a call into a lower module:
+
+1. Fit the base model with the identification engine (:mod:`replication.cloth.regression`,
+   the same code path as ``cloth_identify``).
+2. Localise where model and data disagree (:func:`residuals.where`): the structure
+   statistic ``Q`` of the one-step residuals against their noise floor, over the mesh and
+   over time.
+3. While structure remains (``Q`` above ``q_threshold``), name effects one at a time
+   (forward selection): score every library effect not yet named, added to the model
+   (:func:`naming.score_candidates`), refit the most promising ones jointly with the base
+   model and the effects already named, and keep the one that the held-out rollout, the
+   BIC and the residual structure all confirm.
+4. Structure that the named effects leave (more than ``unexplained_fraction`` of the excess
+   ``Q`` of the base model, and ``Q`` above the threshold) is reported as unexplained, with
+   when (time windows) and where (mesh patches) it is.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 
+from replication.cloth import regression
 from replication.discrepancy import effects as fx
-from replication.discrepancy.fit import Fit, base_from_theta, fit_model, usable_frames
 from replication.discrepancy.gap import STARTS, one_step_error, rollout_error, split_frames
 from replication.discrepancy.naming import score_candidates
-from replication.discrepancy.residuals import residuals, structure, where
+from replication.discrepancy.residuals import SIGMA_FLOOR_H, residuals, structure, where
 from replication.errors import InputError
 
 DEFAULTS = {
     "model": "5", "holdout_block": 25, "holdout_every": 4, "window": 10, "patch": 4,
-    "alpha": 1e-3, "n_subsamples": 40, "stability_min": 0.5, "q_threshold": 3.0,
-    "explained_min": 0.5, "max_candidates": 2,
+    "alpha": 1e-3, "n_subsamples": 20, "stability_min": 0.5, "q_threshold": 3.0,
+    "explained_min": 0.5, "max_candidates": 2, "max_effects": 3,
+    "unexplained_fraction": 0.05,
 }
 MIN_FRAMES = 60
 
@@ -29,21 +47,60 @@ def settings_from(config):
     for key in ("holdout_block", "holdout_every", "window", "patch"):
         if int(settings[key]) < 2:
             raise InputError(f"discrepancy.{key}={settings[key]}: expected an integer >= 2")
-    if not 0 < float(settings["alpha"]) < 1:
-        raise InputError(f"discrepancy.alpha={settings['alpha']}: expected 0 < alpha < 1")
+    for key in ("n_subsamples", "max_candidates", "max_effects"):
+        if int(settings[key]) < 1:
+            raise InputError(f"discrepancy.{key}={settings[key]}: expected an integer >= 1")
+    for key in ("alpha", "stability_min", "explained_min", "unexplained_fraction"):
+        if not 0 < float(settings[key]) <= 1:
+            raise InputError(f"discrepancy.{key}={settings[key]}: expected 0 < value <= 1")
+    if float(settings["q_threshold"]) <= 0:
+        raise InputError(f"discrepancy.q_threshold={settings['q_threshold']}: expected > 0")
     return settings
 
 
-def _structure_of(data, fit, frames, settings):
+def _q(data, fit, frames, settings, mask):
+    """Structure ``Q`` of a fit's residuals on ``frames`` outside the constraint (``mask``
+    (T, P): one mask, the base fit's, so that every model is measured on the same data)."""
     r = residuals(data, fit, frames)
     return structure(r, frames, data.free, data.ops.n, window=settings["window"],
-                     patch=settings["patch"]), r
+                     patch=settings["patch"], floor=SIGMA_FLOOR_H * data.h,
+                     mask=mask[frames])["Q"], r
 
 
 def _bic_delta(r0, r1, extra_params):
     """Change of BIC (Gaussian one-step residuals) from adding ``extra_params``."""
     n = r0.size
-    return float(n * np.log(np.sum(r1 ** 2) / np.sum(r0 ** 2)) + extra_params * np.log(n))
+    s0, s1 = max(np.sum(r0 ** 2), 1e-300), max(np.sum(r1 ** 2), 1e-300)
+    return float(n * np.log(s1 / s0) + extra_params * np.log(n))
+
+
+def _quick_q(data, fit, frames, settings, name, score, model, mask):
+    """Q of the candidate's IV solution (no refit): ranks the candidates cheaply."""
+    base = regression.base_from_theta(score["base_theta"], model, fit.base.tau)
+    terms = list(fit.terms) + [(fx.get_effect(name), np.asarray(score["theta"]))]
+    trial = regression.Fit(base, terms, None, None, fit.mask, "regression")
+    return _q(data, trial, frames, settings, mask)[0]
+
+
+def _describe(effect_fit, name, evidence):
+    effect = fx.get_effect(name)
+    theta = effect_fit.term(name)
+    base = {"k": effect_fit.base.k.tolist()}
+    return {"name": name,
+            "parameters": {"coefficients": dict(zip(effect.coefficients, theta.tolist())),
+                           **effect.physical(theta, base)},
+            "evidence": evidence}
+
+
+def _when_and_where(located, settings, dt):
+    """Time windows (seconds) and mesh patches whose structure is above the threshold."""
+    threshold = settings["q_threshold"]
+    starts = located["window_starts"]
+    windows = [[float(t * dt), float((t + settings["window"]) * dt)]
+               for t, q in zip(starts, located["Q_by_window"]) if q > threshold]
+    patches = [int(k) for k, q in enumerate(located["Q_by_patch"]) if q > threshold]
+    return {"time_windows_s": windows, "patches": patches,
+            "patch_side": settings["patch"]}
 
 
 def analyse(trajectory, config=None, *, rng=None):
@@ -52,7 +109,7 @@ def analyse(trajectory, config=None, *, rng=None):
     Parameters
     ----------
     trajectory : replication.cloth.io.Trajectory
-        Positions (noise expected); ``meta`` is never read.
+        Positions (noise expected, or none); ``meta`` is never read.
     config : dict, optional
         Settings (see :data:`DEFAULTS`).
     rng : np.random.Generator | int | None
@@ -62,17 +119,15 @@ def analyse(trajectory, config=None, *, rng=None):
     -------
     dict with ``named_effects``, ``unexplained``, ``gap_before``, ``gap_after`` (held-out
     rollout RMS in ``h``), ``gap`` (one-step and rollout details), ``where``, ``base``,
-    ``candidates``.
+    ``final_base``, ``candidates`` (per selection step), ``tried``.
     """
-    from replication.discrepancy.fit import prepare
-
     settings = settings_from(config)
     if trajectory.n_frames < MIN_FRAMES:
         raise InputError(f"{trajectory.source}: field 'positions': found {trajectory.n_frames} "
                          f"frames; expected at least {MIN_FRAMES} for fitting and held-out "
                          "checks")
     rng = np.random.default_rng(rng)
-    data = prepare(trajectory)
+    data = regression.prepare(trajectory)
     train, held = split_frames(data.n_frames, block=settings["holdout_block"],
                                every=settings["holdout_every"])
     if not held:
@@ -80,89 +135,101 @@ def analyse(trajectory, config=None, *, rng=None):
         raise InputError(f"{trajectory.source}: field 'positions': found {data.n_frames} "
                          f"frames; expected at least {needed} for one held-out block")
     model = settings["model"]
-    base_fit = fit_model(data, train, model=model)
-    frames = usable_frames(train, data.n_frames)
+    frames = regression.usable_frames(train, data.n_frames)
+    base_fit = regression.fit(data, train, model=model)
+    mask = base_fit.mask
     located = where(data, base_fit, frames, window=settings["window"], patch=settings["patch"])
     q_before = located["Q"]
-    scores = score_candidates(data, base_fit, train, model=model, alpha=settings["alpha"],
-                              n_subsamples=settings["n_subsamples"], rng=rng)
     before = {how: rollout_error(data, base_fit, held, start=how) for how in STARTS}
     start = min(STARTS, key=lambda how: before[how])
     gap_before = {"rollout": before[start], "one_step": one_step_error(data, base_fit, held),
                   "rollout_start": start}
-    _, r0 = _structure_of(data, base_fit, frames, settings)
-    quick_q = {}
-    for name, s in scores.items():
-        if s["significant"] and s["stability"] >= settings["stability_min"]:
-            quick = base_from_theta(s["base_theta"], model, base_fit.base.tau)
-            trial = Fit(quick, [(name, np.asarray(s["theta"]))], None, None, base_fit.mask)
-            quick_q[name] = _structure_of(data, trial, frames, settings)[0]["Q"]
-            s["Q_quick"] = quick_q[name]
-    ranked = sorted(quick_q, key=lambda name: quick_q[name])[:settings["max_candidates"]]
-    strongest = sorted(quick_q, key=lambda name: scores[name]["log10_p"])[:1]
-    ranked += [name for name in strongest if name not in ranked]
-    named, final_fit, tried = [], base_fit, []
-    for name in ranked:
-        trial = fit_model(data, train, [name], model=model)
-        after, r1 = _structure_of(data, trial, frames, settings)
-        gap_trial = {"rollout": rollout_error(data, trial, held, start=start),
-                     "one_step": one_step_error(data, trial, held)}
-        excess = max(q_before - 1.0, 1e-12)
-        explained = (q_before - after["Q"]) / excess
-        evidence = {
-            "wald": scores[name]["wald"], "threshold": scores[name]["threshold"],
-            "log10_p": scores[name]["log10_p"], "stability": scores[name]["stability"],
-            "Q_before": q_before, "Q_after": after["Q"], "explained_fraction": explained,
-            "heldout_rollout_before": gap_before["rollout"],
-            "heldout_rollout_after": gap_trial["rollout"],
-            "heldout_one_step_before": gap_before["one_step"],
-            "heldout_one_step_after": gap_trial["one_step"],
-            "delta_bic": _bic_delta(r0[:, data.free], r1[:, data.free],
-                                    scores[name]["df"]),
-        }
-        confirmed = (gap_trial["rollout"] < gap_before["rollout"]
-                     and evidence["delta_bic"] < 0
-                     and (after["Q"] <= settings["q_threshold"]
-                          or explained >= settings["explained_min"]))
-        tried.append({"name": name, "confirmed": bool(confirmed), "evidence": evidence})
-        if confirmed and (not named or after["Q"] < named[0]["evidence"]["Q_after"]):
-            theta = trial.terms[0][1]
-            base_dict = {"k": trial.base.k.tolist()}
-            effect = fx.get_effect(name)
-            named = [{"name": name,
-                      "parameters": {"coefficients": dict(zip(effect.coefficients,
-                                                              np.asarray(theta).tolist())),
-                                     **effect.physical(theta, base_dict)},
-                      "evidence": evidence}]
-            final_fit = trial
-    gap_after = gap_before if final_fit is base_fit else {
-        "rollout": rollout_error(data, final_fit, held, start=start),
-        "one_step": one_step_error(data, final_fit, held)}
-    q_final = (_structure_of(data, final_fit, frames, settings)[0]["Q"]
-               if final_fit is not base_fit else q_before)
+    selected, named, tried, rounds = [], [], [], []
+    current, q_current, gap_current = base_fit, q_before, gap_before
+    _, r_current = _q(data, current, frames, settings, mask)
+    while len(selected) < settings["max_effects"] and q_current > settings["q_threshold"]:
+        scores = score_candidates(data, current, train, selected=selected, model=model,
+                                  alpha=settings["alpha"],
+                                  n_subsamples=settings["n_subsamples"], rng=rng)
+        rounds.append(scores)
+        eligible = [name for name, s in scores.items()
+                    if s["significant"] and s["stability"] >= settings["stability_min"]]
+        if not eligible:
+            break
+        quick = {name: _quick_q(data, current, frames, settings, name,
+                                scores[name], model, mask) for name in eligible}
+        for name in eligible:
+            scores[name]["Q_quick"] = quick[name]
+        ranked = sorted(eligible, key=lambda name: quick[name])[:settings["max_candidates"]]
+        strongest = min(eligible, key=lambda name: scores[name]["log10_p"])
+        ranked += [strongest] if strongest not in ranked else []
+        best = None
+        for name in ranked:
+            trial = regression.fit(data, train, [fx.get_effect(n) for n in selected + [name]],
+                                   model=model)
+            q_after, r_after = _q(data, trial, frames, settings, mask)
+            gap_trial = {"rollout": rollout_error(data, trial, held, start=start),
+                         "one_step": one_step_error(data, trial, held)}
+            excess = max(q_current - 1.0, 1e-12)
+            explained = (q_current - q_after) / excess
+            evidence = {
+                "wald": scores[name]["wald"], "threshold": scores[name]["threshold"],
+                "log10_p": scores[name]["log10_p"], "stability": scores[name]["stability"],
+                "Q_before": q_current, "Q_after": q_after, "explained_fraction": explained,
+                "heldout_rollout_before": gap_current["rollout"],
+                "heldout_rollout_after": gap_trial["rollout"],
+                "heldout_one_step_before": gap_current["one_step"],
+                "heldout_one_step_after": gap_trial["one_step"],
+                "delta_bic": _bic_delta(r_current[:, data.free], r_after[:, data.free],
+                                        scores[name]["df"]),
+                "fit": trial.how,
+            }
+            confirmed = bool(gap_trial["rollout"] < gap_current["rollout"]
+                             and evidence["delta_bic"] < 0
+                             and (q_after <= settings["q_threshold"]
+                                  or explained >= settings["explained_min"]))
+            tried.append({"name": name, "step": len(selected), "confirmed": confirmed,
+                          "evidence": evidence})
+            if confirmed and (best is None or q_after < best[1]):
+                best = (name, q_after, trial, gap_trial, r_after, evidence)
+        if best is None:
+            break
+        name, q_current, current, gap_current, r_current, evidence = best
+        selected.append(name)
+        named.append((name, evidence))
+    named_effects = [_describe(current, name, evidence) for name, evidence in named]
+    final = current if selected else base_fit
+    located_final = where(data, final, frames, window=settings["window"],
+                          patch=settings["patch"], mask=mask[frames]) if selected else located
+    remaining = (q_current - 1.0) / max(q_before - 1.0, 1e-12)
     unexplained = None
-    if q_final > settings["q_threshold"]:
-        unexplained = {"Q": q_final, "q_threshold": settings["q_threshold"],
+    if q_current > settings["q_threshold"] and (
+            not selected or remaining > settings["unexplained_fraction"]):
+        unexplained = {"Q": q_current, "q_threshold": settings["q_threshold"],
+                       "remaining_fraction": float(remaining),
+                       **_when_and_where(located_final, settings, data.scene.dt),
                        "note": ("structured residual above the noise floor that no library "
-                                "candidate explains" if not named else
-                                "structure remains after the named effect")}
-    noise_floor = located["noise_sigma_h"]
+                                "effect explains" if not selected else
+                                "structure remains after the named effects")}
     return {
-        "named_effects": named,
+        "named_effects": named_effects,
         "n_frames": int(data.n_frames),
         "unexplained": unexplained,
         "gap_before": gap_before["rollout"],
-        "gap_after": gap_after["rollout"],
-        "gap": {"before": gap_before, "after": gap_after,
+        "gap_after": gap_current["rollout"],
+        "gap": {"before": gap_before, "after": gap_current,
                 "rollout_steps": int(min(len(chunk) for chunk in held)),
-                "one_step_noise_floor_h": float(np.sqrt(6.0) * noise_floor),
+                "one_step_noise_floor_h": float(np.sqrt(6.0) * located["noise_sigma_h"]),
                 "held_out_frames": [[int(c[0]), int(c[-1])] for c in held]},
         "where": located,
-        "base": {"model": model, "rest": base_fit.base.rest.tolist(),
+        "where_final": {k: located_final[k] for k in ("Q", "Q_by_window", "window_starts",
+                                                      "Q_by_patch", "map")},
+        "base": {"model": model, "fit": base_fit.how, "rest": base_fit.base.rest.tolist(),
                  "k": base_fit.base.k.tolist(), "tau": base_fit.base.tau.tolist()},
-        "final_base": {"rest": final_fit.base.rest.tolist(), "k": final_fit.base.k.tolist(),
-                       "tau": final_fit.base.tau.tolist()},
-        "candidates": scores,
+        "final_base": {"rest": final.base.rest.tolist(), "k": final.base.k.tolist(),
+                       "tau": final.base.tau.tolist()},
+        "candidates": rounds[0] if rounds else {},
+        "candidates_by_step": rounds,
         "tried": tried,
         "settings": settings,
     }

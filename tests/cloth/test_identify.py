@@ -99,8 +99,7 @@ def test_residuals_squared_sum_to_the_cost(trajectory):
 
 def test_structured_identifier_finds_the_truth_without_meta(trajectory):
     blind = type(trajectory)(**{**trajectory.__dict__, "meta": {}})
-    settings = {"regression": {"first": 1, "stride": 25, "trim_rounds": 6,
-                               "trim_factor": 10.0, "frame_quantile": 0.5},
+    settings = {"regression": {"first": 1, "stride": 5},
                 "tau_scan": {"n_grid": 60, "refine_evals": 30},
                 "refine": {"box": 0.02, "ea": {"pop_size": 8, "generations": 2}}}
     best, cost, info = identify(blind, rng=0, budget=1000, settings=settings)

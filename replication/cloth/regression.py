@@ -1,0 +1,662 @@
+"""The identification engine: base cloth model and plug-in force terms fitted to positions.
+
+One engine serves every workflow that fits the cloth model to a trajectory (the structured
+identifier of ``cloth_identify`` and the discrepancy workflow), so a fix serves both.
+
+For a free particle that the deformation constraint leaves alone, one contract step gives
+``x_{t+1} - 2 x_t + x_{t-1} = dt^2 (g - c v_t / m + F_springs(x_t) / m + F_extra / m)``, and
+the spring force ``k (L - l) d / L = k d - (k l) d / L`` is linear in ``k_t`` and ``k_t l_t``
+per spring type; every plug-in term (an effect of the discrepancy library) is linear in its
+coefficients. So observed accelerations are a linear regression on particle-frames where
+the constraint is inactive; the critical elongation rate ``tau`` only acts through the
+constraint and is found by a one-dimensional search of the one-step cost (compiled kernel).
+
+Stages of :func:`fit`:
+
+1. Start (no ``tau`` needed): least squares frame by frame with iterative trimming of the
+   particle-frames the constraint moved (outliers of the unconstrained step); the frames
+   whose fits explain the data best are then fitted jointly, again with trimming. Done on
+   the data as recorded and on positions smoothed in time (Savitzky-Golay), keeping the
+   version that explains its data best: raw data win when they are noise-free, smoothed
+   ones against noise. This is what keeps every fit out of the cost's wrong valley
+   (small K and rest lengths, large tau).
+2. ``tau`` by a search of the one-step cost (wide log grid, then zooms).
+3. Rounds of: mask of the particle-frames the constraint probably moved (model prediction
+   and recorded frame), joint instrumental-variable regression of base and plug-in
+   coefficients on the raw data (velocities come from the same noisy positions, so ordinary
+   least squares is biased; the instrument of frame ``t`` is the same regressors built
+   from frames ``t-2`` and ``t+3``), ``tau`` search again.
+
+When the constraint is active on nearly every particle-frame (nothing left to regress
+on), the fit falls back to least squares through the constraint: the one-step residuals
+of the compiled model are minimised over rest lengths, stiffness and ``tau``. A valid
+trajectory is never refused.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from functools import cached_property
+from typing import Callable, NamedTuple
+
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.signal import savgol_filter
+
+from replication.cloth import geometry
+from replication.cloth.costs import ClothCost, structural_length
+from replication.cloth.mesh import FAMILY_OF_TYPE, N_TYPES
+from replication.cloth.model import ClothParams, step
+
+LAG_BEFORE = 2
+LAG_AFTER = 3
+BIG_TAU = 1e9
+HAC_LAGS = 2
+MASK_MARGIN = 0.25  # of the stretch tau: the mask stays conservative while tau is rough
+SMOOTH_WINDOWS = (0, 31)
+
+
+class Data(NamedTuple):
+    """Arrays of one trajectory prepared for fitting (``T`` frames, ``P`` particles)."""
+
+    trajectory: object
+    x: np.ndarray         # (T, P, 3)
+    v: np.ndarray         # (T, P, 3)
+    target: np.ndarray    # (T, P, 3): a_t - g + c v_t / m, NaN where undefined
+    scene: object
+    ops: geometry.MeshOperators
+    mass: np.ndarray      # (P,)
+    free: np.ndarray      # (P,) bool
+    h: float
+
+    @property
+    def n_frames(self):
+        return self.x.shape[0]
+
+
+class BaseModel(NamedTuple):
+    """Base-model parameters per spring type: rest, k, tau each (6,)."""
+
+    rest: np.ndarray
+    k: np.ndarray
+    tau: np.ndarray
+
+    def params(self, pop=1):
+        return ClothParams(np.repeat(self.rest[None], pop, 0), np.repeat(self.k[None], pop, 0),
+                           np.repeat(self.tau[None], pop, 0))
+
+
+class Plugin(NamedTuple):
+    """A force term linear in its coefficients: ``basis(q) -> (F, P, 3, m)`` extra
+    acceleration per unit coefficient under the nominal mass; ``needs_base``: the columns
+    depend on the base model's rest lengths or stiffness (rebuilt every round)."""
+
+    name: str
+    basis: Callable
+    needs_base: bool = False
+
+
+class Fit(NamedTuple):
+    """A fitted model: base parameters, terms ``[(plugin, theta)]`` and statistics."""
+
+    base: BaseModel
+    terms: list
+    theta: np.ndarray | None   # all linear coefficients, base first (None: not regressed)
+    cov: np.ndarray | None     # cluster-robust covariance of theta
+    mask: np.ndarray           # (T, P) particle-frames used by the last regression
+    how: str                   # "regression" or "through_constraint"
+
+    def term(self, name):
+        """Coefficients of the plug-in called ``name``."""
+        return next(np.asarray(theta) for plugin, theta in self.terms if plugin.name == name)
+
+
+class StateFrames:
+    """States ``(x, v)`` of some frames with the quantities plug-ins are built from.
+
+    Parameters
+    ----------
+    x, v : (F, P, 3) ndarray
+    ops : geometry.MeshOperators
+    mass : (P,) ndarray
+        Nominal (file) mass per particle.
+    rest, k : (6,) ndarray
+        Current base-model rest lengths and stiffnesses.
+    damping : float
+        Known linear damping of the data file.
+    """
+
+    def __init__(self, x, v, ops, mass, rest, k, damping=0.0):
+        self.x = x
+        self.v = v
+        self.ops = ops
+        self.mass = mass
+        self.rest = np.asarray(rest, dtype=float)
+        self.k = np.asarray(k, dtype=float)
+        self.damping = float(damping)
+
+    @cached_property
+    def sums(self):
+        return geometry.spring_sums(self.ops, self.x)
+
+    @cached_property
+    def area_normals(self):
+        return geometry.area_normals(self.x, self.ops.n)
+
+    @cached_property
+    def inner_force(self):
+        """Spring forces plus known damping at the base parameters, (F, P, 3)."""
+        A, B = self.sums
+        return geometry.spring_force(A, B, self.rest, self.k) - self.damping * self.v
+
+    def per_mass(self, force):
+        return force / self.mass[None, :, None]
+
+
+def smoothed(trajectory, window, polyorder=3):
+    """``trajectory`` with positions smoothed over time (Savitzky-Golay, ``window``
+    frames, pinned particles untouched) and velocities re-derived; ``window=0``: as is.
+
+    Against position noise: the one-step regression differentiates positions twice, so
+    noise of sd s enters its target with sd of order s / dt^2 (docs/pitfalls.md).
+    """
+    if window == 0 or window > trajectory.n_frames:
+        return trajectory
+    positions = savgol_filter(trajectory.flat_positions(), window, polyorder, axis=0)
+    free = trajectory.scene().free
+    positions[:, ~free] = trajectory.flat_positions()[:, ~free]
+    return dataclasses.replace(trajectory, velocities=None,
+                               positions=positions.reshape(trajectory.positions.shape))
+
+
+def prepare(trajectory):
+    """Arrays of a validated :class:`~replication.cloth.io.Trajectory` for fitting."""
+    scene = trajectory.scene()
+    x = np.ascontiguousarray(trajectory.flat_positions())
+    v = np.ascontiguousarray(trajectory.flat_velocities())
+    dt = scene.dt
+    target = np.full_like(x, np.nan)
+    target[:-1] = ((x[1:] - x[:-1]) / dt - v[:-1]) / dt
+    target -= scene.gravity[None, None, :]
+    target += scene.damping * v / scene.mass[None, :, None]
+    return Data(trajectory, x, v, target, scene, geometry.MeshOperators(trajectory.n),
+                scene.mass, scene.free, structural_length(trajectory))
+
+
+def n_base(model):
+    """Number of linear base coefficients."""
+    return 4 if model == "5" else 12
+
+
+def base_columns(A, B, mass, model="5"):
+    """Regressors of the base model, (F, P, 3, 4) for ``model="5"`` (coefficients
+    ``K, K l01, K l23, K l45``) or (F, P, 3, 12) for ``"18"`` (``k_t``, then ``k_t l_t``)."""
+    inv_m = 1.0 / mass[None, :, None]
+    if model == "5":
+        cols = [A.sum(axis=0)] + [-sum(B[t] for t in range(N_TYPES) if FAMILY_OF_TYPE[t] == f)
+                                  for f in range(3)]
+    elif model == "18":
+        cols = list(A) + [-b for b in B]
+    else:
+        raise ValueError(f"model={model!r}: expected '5' or '18'")
+    return np.stack([c * inv_m for c in cols], axis=-1)
+
+
+def base_from_theta(theta, model, tau):
+    """Rest lengths and stiffnesses per type from linear base coefficients."""
+    theta = np.asarray(theta, dtype=float)
+    if model == "5":
+        K = theta[0]
+        rest = (theta[1:4] / K)[FAMILY_OF_TYPE]
+        k = np.full(N_TYPES, K)
+    else:
+        k = theta[:N_TYPES].copy()
+        rest = theta[N_TYPES:2 * N_TYPES] / k
+    return BaseModel(rest, k, np.broadcast_to(np.asarray(tau, float), (N_TYPES,)).copy())
+
+
+def state_frames(data, base, frames=None):
+    """:class:`StateFrames` of ``frames`` (all frames when None) at the ``base`` model."""
+    x = data.x if frames is None else data.x[frames]
+    v = data.v if frames is None else data.v[frames]
+    return StateFrames(x, v, data.ops, data.mass, base.rest, base.k, data.scene.damping)
+
+
+def design(data, base, plugins, model, frames=None):
+    """Regressors of base and plug-ins on ``frames`` (all when None): (F, P, 3, m), and the
+    column slice of each plug-in."""
+    q = state_frames(data, base, frames)
+    A, B = q.sums
+    blocks = [base_columns(A, B, data.mass, model)]
+    slices, start = {}, blocks[0].shape[-1]
+    for plugin in plugins:
+        cols = plugin.basis(q)
+        blocks.append(cols)
+        slices[plugin.name] = slice(start, start + cols.shape[-1])
+        start += cols.shape[-1]
+    return np.concatenate(blocks, axis=-1), slices
+
+
+def extra_force(terms, q):
+    """Total force of fitted terms ``[(plugin, theta)]`` on the frames ``q``, (F, P, 3)."""
+    total = np.zeros_like(q.x)
+    for plugin, theta in terms:
+        total += plugin.basis(q) @ np.asarray(theta, dtype=float)
+    return total * q.mass[None, :, None]
+
+
+def usable_frames(frames, n_frames):
+    """Frames ``t`` with instruments ``t-2, t+3`` and target ``t+1`` inside the data."""
+    frames = np.asarray(frames)
+    return frames[(frames - LAG_BEFORE - 1 >= 0) & (frames + LAG_AFTER <= n_frames - 1)]
+
+
+def one_step_predictions(data, base, terms, frames):
+    """Model predictions of frames ``t+1`` from recorded states at ``t``, (F, P, 3)."""
+    frames = np.asarray(frames)
+    q = state_frames(data, base, frames)
+    x_hat, _ = step(q.x, q.v, base.params(len(frames)), data.scene, extra_force(terms, q))
+    return x_hat
+
+
+def residuals(data, base, terms, frames):
+    """One-step residuals ``x_{t+1} - x^_{t+1}`` (F, P, 3), zero on pinned particles."""
+    frames = np.asarray(frames)
+    r = data.x[frames + 1] - one_step_predictions(data, base, terms, frames)
+    r[:, ~data.free] = 0.0
+    return r
+
+
+def constraint_mask(data, base, terms, frames, *, margin=MASK_MARGIN, noisy=False):
+    """Particle-frames the deformation constraint (probably) leaves alone, (T, P) bool.
+
+    A free particle is excluded at frame ``t`` if a spring touching it is longer than
+    ``(1 + tau (1 - margin)) l`` in the recorded frames ``t-2``, ``t+2`` or ``t+3`` (whose
+    noise is independent of the regression's target at ``t``) and, unless ``noisy``, in
+    the unconstrained prediction of ``t+1`` and the recorded frame ``t+1`` (on noisy data
+    selecting on those frames would select on the target's noise and bias the fit). The
+    margin keeps the mask conservative while ``tau`` is rough: constrained
+    particle-frames must not get in (they pull the fit towards the wrong valley).
+    """
+    frames = np.asarray(frames)
+    sources = [data.x[frames - LAG_BEFORE], data.x[frames + 2], data.x[frames + LAG_AFTER]]
+    if not noisy:
+        loose = BaseModel(base.rest, base.k, np.full(N_TYPES, BIG_TAU))
+        sources += [one_step_predictions(data, loose, terms, frames), data.x[frames + 1]]
+    mask = np.zeros((data.n_frames, data.x.shape[1]), dtype=bool)
+    mask[frames] = data.free[None, :]
+    a, b, kind = data.ops.a, data.ops.b, data.ops.kind
+    limit = (1.0 + base.tau[kind] * (1.0 - margin)) * base.rest[kind]
+    for positions in sources:
+        length = np.linalg.norm(positions[:, b] - positions[:, a], axis=2)
+        rows, over = np.nonzero(length > limit[None, :])
+        hit = np.zeros((len(frames), data.x.shape[1]), dtype=bool)
+        hit[rows, a[over]] = True
+        hit[rows, b[over]] = True
+        mask[frames] &= ~hit
+    return mask
+
+
+def cluster_sums(columns, target, frames, mask, *, block=5):
+    """Instrumental-variable normal equations summed per cluster of ``block`` frames.
+
+    Parameters
+    ----------
+    columns : (T, P, 3, m) ndarray
+    target : (T, P, 3) ndarray
+    frames : (F,) int ndarray of usable frames
+    mask : (T, P) bool ndarray
+    block : int
+
+    Returns
+    -------
+    G : (C, m, m) ``sum Z^T Phi``; hz : (C, m) ``sum Z^T y``; labels : (C,) cluster index
+    ``t // block`` (consecutive labels are neighbouring blocks of time); count : int
+    particle-frames used.
+    """
+    frames = np.asarray(frames)
+    labels, which = np.unique(frames // block, return_inverse=True)
+    m = columns.shape[-1]
+    G = np.zeros((labels.size, m, m))
+    hz = np.zeros((labels.size, m))
+    count = 0
+    for row, t in enumerate(frames):
+        keep = mask[t]
+        count += int(keep.sum())
+        phi = columns[t, keep].reshape(-1, m)
+        z = 0.5 * (columns[t - LAG_BEFORE, keep] + columns[t + LAG_AFTER, keep]).reshape(-1, m)
+        G[which[row]] += z.T @ phi
+        hz[which[row]] += z.T @ target[t, keep].reshape(-1)
+    return G, hz, labels, count
+
+
+def iv_solve(G, hz, cols=None, clusters=None, labels=None):
+    """Solve the summed IV equations on columns ``cols`` and clusters ``clusters``.
+
+    The covariance is a sandwich over clusters; with ``labels``, products of the scores of
+    blocks up to ``HAC_LAGS`` apart are added with Bartlett weights (Newey-West): the
+    residual noise ``e_{t+1} - 2 e_t + e_{t-1}`` and the instruments' noise are correlated
+    across block boundaries.
+
+    Returns
+    -------
+    theta : (k,) ndarray
+    cov : (k, k) ndarray
+    """
+    cols = np.arange(G.shape[1]) if cols is None else cols
+    clusters = np.arange(G.shape[0]) if clusters is None else clusters
+    Gs = G[np.ix_(clusters, cols, cols)]
+    hs = hz[np.ix_(clusters, cols)]
+    bread = np.linalg.pinv(Gs.sum(axis=0))
+    theta = bread @ hs.sum(axis=0)
+    scores = hs - Gs @ theta
+    n_c = len(clusters)
+    meat = scores.T @ scores
+    if labels is not None and n_c > 1:
+        lab = np.asarray(labels)[clusters]
+        position = {int(label): k for k, label in enumerate(lab)}
+        for lag in range(1, HAC_LAGS + 1):
+            pairs = [(k, position[int(label) + lag]) for k, label in enumerate(lab)
+                     if int(label) + lag in position]
+            if pairs:
+                first, second = np.array(pairs).T
+                cross = scores[first].T @ scores[second]
+                meat = meat + (1.0 - lag / (HAC_LAGS + 1.0)) * (cross + cross.T)
+    meat = meat * n_c / max(n_c - 1, 1)
+    return theta, bread @ meat @ bread.T
+
+
+def search_tau(data, base, terms, frames, *, max_frames=50, levels=9):
+    """The critical elongation rate minimising the one-step cost over ``frames``.
+
+    A log grid around the current value (or a wide one when it is :data:`BIG_TAU`), then
+    ``levels`` zooms of 21 points around the best value, each grid one population of the
+    compiled kernel; exact ties go to the smallest ``tau``.
+    """
+    frames = np.asarray(frames)
+    if len(frames) > max_frames:
+        frames = frames[np.linspace(0, len(frames) - 1, max_frames).round().astype(int)]
+    cost = ClothCost(data.trajectory, frames, h=data.h)
+    extra = extra_force(terms, state_frames(data, base, frames))[None]
+    current = float(base.tau[0])
+    grid = (np.geomspace(current / 1.5, current * 1.5, 21) if current < BIG_TAU
+            else np.geomspace(3e-3, 3.0, 64))
+
+    def evaluate(taus):
+        pop = len(taus)
+        params = ClothParams(np.repeat(base.rest[None], pop, 0),
+                             np.repeat(base.k[None], pop, 0),
+                             np.repeat(np.asarray(taus)[:, None], N_TYPES, 1))
+        return cost(params, extra)
+
+    values = evaluate(grid)
+    pick = int(np.argmin(values))
+    best_tau, best_value = float(grid[pick]), float(values[pick])
+    for _ in range(levels):
+        lo, hi = grid[max(pick - 1, 0)], grid[min(pick + 1, len(grid) - 1)]
+        if hi - lo <= 1e-10 * hi:
+            break
+        grid = np.linspace(lo, hi, 21)
+        values = evaluate(grid)
+        pick = int(np.argmin(values))
+        if values[pick] < best_value:
+            best_tau, best_value = float(grid[pick]), float(values[pick])
+    return best_tau
+
+
+def position_noise(data):
+    """Position-noise standard deviation (units of length) from the data alone.
+
+    Second differences ``x_{t+1} - 2 x_t + x_{t-1}`` of white noise of sd ``sigma`` have
+    lag-0 and lag-1 autocovariances ``6 sigma^2`` and ``-4 sigma^2``, so ``sigma^2 =
+    (gamma_0 - gamma_1) / 10`` while smooth motion adds about as much to both; the median
+    over free particles keeps constraint events out.
+    """
+    x = data.x[:, data.free]
+    if x.shape[0] < 5:
+        return 0.0
+    second = x[2:] - 2.0 * x[1:-1] + x[:-2]
+    gamma0 = np.mean(second * second, axis=(0, 2))
+    gamma1 = np.mean(second[1:] * second[:-1], axis=(0, 2))
+    return float(np.sqrt(max(np.median(gamma0 - gamma1), 0.0) / 10.0))
+
+
+NOISY_H = 1e-4   # position noise (units of h) above which the data count as noisy
+
+
+def is_noisy(data, *, noise_h=NOISY_H):
+    """Whether the position noise estimated from the data is above ``noise_h`` h."""
+    return position_noise(data) > noise_h * data.h
+
+
+def tau_data(data, *, window=11):
+    """The version of the data the tau search runs on: as recorded when the position noise
+    is below :data:`NOISY_H` (exact on noise-free data), else smoothed over ``window`` frames
+    (the one-step cost on noisy states prefers a far too small tau)."""
+    if not is_noisy(data) or window > data.n_frames:
+        return data
+    return prepare(smoothed(data.trajectory, window))
+
+
+def typical_lengths(data):
+    """Median recorded length of each spring type over all frames, (6,)."""
+    x = data.x[::max(1, data.n_frames // 50)]
+    return np.array([np.median(np.linalg.norm(x[:, data.ops.b[idx]] - x[:, data.ops.a[idx]],
+                                              axis=2)) for idx in data.ops.type_slices])
+
+
+def _trimmed_lstsq(A, y, *, rounds=6, factor=10.0):
+    """Least squares with iterative trimming of particles (3 rows each) whose residual
+    norm exceeds ``factor`` times the median of the kept ones; (theta, median residual)."""
+    keep = np.ones(y.size // 3, dtype=bool)
+    theta = np.zeros(A.shape[1])
+    residual = np.linalg.norm(y.reshape(-1, 3), axis=1)
+    for _ in range(rounds + 1):
+        rows = np.repeat(keep, 3)
+        theta = np.linalg.lstsq(A[rows], y[rows], rcond=None)[0]
+        residual = np.linalg.norm((A @ theta - y).reshape(-1, 3), axis=1)
+        new_keep = residual <= factor * max(np.median(residual[keep]), 1e-300)
+        if np.array_equal(new_keep, keep) or new_keep.sum() * 3 < 2 * A.shape[1]:
+            break
+        keep = new_keep
+    return theta, float(np.median(residual[keep]))
+
+
+def trimmed_start(data, frames, plugins, *, model="5", max_frames=60, quantile=0.3):
+    """Stage 1: base (and base-free plug-in) coefficients by trimmed least squares.
+
+    Returns
+    -------
+    theta : (m,) ndarray over base columns and ``plugins``; scale : float median residual
+    of the kept particle-frames (comparable between data versions), or None when the
+    regression is degenerate.
+    """
+    frames = usable_frames(frames, data.n_frames)
+    if frames.size > max_frames:
+        frames = frames[np.linspace(0, frames.size - 1, max_frames).round().astype(int)]
+    if frames.size == 0:
+        return None, None
+    guess = BaseModel(typical_lengths(data), np.ones(N_TYPES), np.full(N_TYPES, BIG_TAU))
+    columns, _ = design(data, guess, plugins, model, frames)
+    free = data.free
+    m = columns.shape[-1]
+    blocks, scales = [], []
+    for row, t in enumerate(frames):
+        A = columns[row][free].reshape(-1, m)
+        y = data.target[t][free].reshape(-1)
+        blocks.append((A, y))
+        scales.append(_trimmed_lstsq(A, y)[1] if A.shape[0] >= 2 * m else np.inf)
+    n_best = max(1, int(round(quantile * frames.size)))
+    chosen = np.argsort(scales, kind="stable")[:n_best]
+    A = np.vstack([blocks[i][0] for i in chosen])
+    y = np.concatenate([blocks[i][1] for i in chosen])
+    if np.linalg.matrix_rank(A) < m:
+        return None, None
+    return _trimmed_lstsq(A, y)
+
+
+def _valid(theta, model):
+    nb = n_base(model)
+    return theta is not None and np.all(np.isfinite(theta)) and np.all(theta[:nb] > 0)
+
+
+def _widths(data, plugins):
+    base = BaseModel(typical_lengths(data), np.ones(N_TYPES), np.full(N_TYPES, BIG_TAU))
+    q = state_frames(data, base, [0])
+    return [plugin.basis(q).shape[-1] for plugin in plugins]
+
+
+def _split(theta, plugins, widths, model, tau):
+    """Base model and terms from coefficients over the base and ``plugins`` (those with
+    ``needs_base`` absent from ``theta`` start at zero)."""
+    nb = n_base(model)
+    base = base_from_theta(theta[:nb], model, tau)
+    terms, at = [], nb
+    for plugin, width in zip(plugins, widths):
+        if plugin.needs_base:
+            terms.append((plugin, np.zeros(width)))
+        else:
+            terms.append((plugin, np.asarray(theta[at:at + width])))
+            at += width
+    return base, terms
+
+
+def trimmed_starts(data, frames, plugins, model, smooth_windows):
+    """Stage 1, robust to the constraint: the best trimmed least-squares start over the
+    smoothing windows, as (base with tau = BIG_TAU, terms), or None."""
+    free_plugins = [p for p in plugins if not p.needs_base]
+    best = None
+    for window in smooth_windows:
+        version = data if window == 0 else prepare(smoothed(data.trajectory, int(window)))
+        theta, scale = trimmed_start(version, frames, free_plugins, model=model)
+        if _valid(theta, model) and (best is None or scale < best[0]):
+            best = (scale, theta)
+    if best is None:
+        return None
+    return _split(best[1], plugins, _widths(data, plugins), model, BIG_TAU)
+
+
+def conservative_start(data, frames, plugins, model, *, tau=0.05, block=5):
+    """Stage 1, robust to noise: one IV regression on the particle-frames whose recorded
+    springs (frames ``t-2``, ``t+2``, ``t+3``) are all shorter than ``(1 + tau)`` times
+    0.99 of their type's median recorded length (far from any plausible constraint), or
+    None."""
+    free_plugins = [p for p in plugins if not p.needs_base]
+    guess = BaseModel(0.99 * typical_lengths(data), np.ones(N_TYPES), np.full(N_TYPES, tau))
+    mask = constraint_mask(data, guess, [], frames, margin=0.0, noisy=True)
+    columns, _ = design(data, guess, free_plugins, model)
+    G, hz, labels, count = cluster_sums(columns, data.target, frames, mask, block=block)
+    if count * 3 < 30 * columns.shape[-1] or labels.size < 2:
+        return None
+    theta, _ = iv_solve(G, hz, labels=labels)
+    if not _valid(theta, model):
+        return None
+    return _split(theta, plugins, _widths(data, plugins), model, BIG_TAU)
+
+
+def fit(data, frames, plugins=(), *, model="5", rounds=3, block=5,
+        smooth_windows=SMOOTH_WINDOWS, min_rows_per_coefficient=30):
+    """Fit the base model and plug-in terms jointly on ``frames`` (see module docstring).
+
+    Parameters
+    ----------
+    data : Data
+    frames : (F,) int array_like
+        Training frames ``t`` (each predicts ``t+1``).
+    plugins : sequence of Plugin
+    model : {"5", "18"}
+    rounds : int
+        Rounds of (constraint mask, IV regression, tau search).
+    smooth_windows : sequence of int
+        Savitzky-Golay windows tried by the start (0: the data as recorded).
+
+    Returns
+    -------
+    Fit
+    """
+    plugins = tuple(plugins)
+    frames = usable_frames(frames, data.n_frames)
+    if frames.size == 0:
+        return fit_through_constraint(data, frames, plugins, model=model)
+    for make_start in (conservative_start, trimmed_starts):
+        started = (make_start(data, frames, plugins, model) if make_start is conservative_start
+                   else make_start(data, frames, plugins, model, smooth_windows))
+        if started is None:
+            continue
+        fitted = _rounds(data, frames, plugins, started, model=model, rounds=rounds,
+                         block=block, min_rows_per_coefficient=min_rows_per_coefficient)
+        if fitted is not None:
+            return fitted
+    # nothing outside the constraint to regress on: fit through it
+    return fit_through_constraint(data, frames, plugins, model=model)
+
+
+def _rounds(data, frames, plugins, started, *, model, rounds, block,
+            min_rows_per_coefficient):
+    """Stages 2 and 3 from a start: tau search, then rounds of (mask, IV, tau); the last
+    valid round, or None when not one round had data and physical coefficients."""
+    base, terms = started
+    for_tau = tau_data(data)
+    noisy = for_tau is not data
+    base = base._replace(tau=np.full(N_TYPES, search_tau(for_tau, base, terms, frames)))
+    nb = n_base(model)
+    best = None
+    for _ in range(rounds):
+        mask = constraint_mask(data, base, terms, frames, noisy=noisy)
+        columns, slices = design(data, base, plugins, model)
+        G, hz, labels, count = cluster_sums(columns, data.target, frames, mask, block=block)
+        if count * 3 < min_rows_per_coefficient * columns.shape[-1] or labels.size < 2:
+            break
+        theta, cov = iv_solve(G, hz, labels=labels)
+        if not _valid(theta, model):
+            break
+        terms = [(plugin, theta[slices[plugin.name]]) for plugin in plugins]
+        base = base_from_theta(theta[:nb], model, base.tau)
+        base = base._replace(tau=np.full(N_TYPES, search_tau(for_tau, base, terms, frames)))
+        best = Fit(base, terms, theta, cov, mask, "regression")
+    return best
+
+
+def fit_through_constraint(data, frames, plugins=(), *, model="5", start=None,
+                           max_frames=40):
+    """Fallback: least squares of the one-step residuals, constraint included, over the
+    log of the 5-parameter base (rest per family, K, tau) and the linear plug-in
+    coefficients, from ``start`` or from the recorded lengths and a grid of stiffness."""
+    frames = usable_frames(frames, data.n_frames)
+    if frames.size == 0:
+        frames = np.arange(1, data.n_frames - 1)
+    if frames.size > max_frames:
+        frames = frames[np.linspace(0, frames.size - 1, max_frames).round().astype(int)]
+    widths = [p.basis(state_frames(data, BaseModel(typical_lengths(data), np.ones(6),
+                                                   np.ones(6)), [0])).shape[-1]
+              for p in plugins]
+
+    def unpack(z):
+        rest = np.exp(z[:3])[FAMILY_OF_TYPE]
+        base = BaseModel(rest, np.full(N_TYPES, np.exp(z[3])), np.full(N_TYPES, np.exp(z[4])))
+        terms, at = [], 5
+        for plugin, width in zip(plugins, widths):
+            terms.append((plugin, z[at:at + width]))
+            at += width
+        return base, terms
+
+    def fun(z):
+        base, terms = unpack(z)
+        r = residuals(data, base, terms, frames)[:, data.free].ravel() / data.h
+        return np.where(np.isfinite(r), r, 1e3)
+
+    if start is not None:
+        z0s = [np.r_[np.log(start.base.rest[[0, 2, 4]]), np.log(start.base.k[0]),
+                     np.log(min(start.base.tau[0], 3.0)), np.zeros(sum(widths))]]
+    else:
+        typical = typical_lengths(data)[[0, 2, 4]]
+        z0s = [np.r_[np.log(typical / 1.05), np.log(K), np.log(0.3), np.zeros(sum(widths))]
+               for K in (0.5, 2.0, 8.0)]
+    best = None
+    for z0 in z0s:
+        solution = least_squares(fun, z0, x_scale=1.0, max_nfev=200 * len(z0))
+        if best is None or solution.cost < best.cost:
+            best = solution
+    base, terms = unpack(best.x)
+    return Fit(base, terms, None, None, np.zeros((data.n_frames, data.x.shape[1]), bool),
+               "through_constraint")

@@ -47,6 +47,7 @@ from replication.cloth import geometry
 from replication.cloth.costs import ClothCost, structural_length
 from replication.cloth.mesh import FAMILY_OF_TYPE, N_TYPES
 from replication.cloth.model import ClothParams, step
+from replication.errors import InputError
 
 LAG_BEFORE = 2
 LAG_AFTER = 3
@@ -554,6 +555,23 @@ def conservative_start(data, frames, plugins, model, *, tau=0.05, block=5):
     return _split(theta, plugins, _widths(data, plugins), model, BIG_TAU)
 
 
+def check_cloth(data, *, spread=2.0, tolerance=0.01):
+    """Refuse positions that are not a cloth: more than ``tolerance`` of the structural
+    spring-frames longer or shorter than ``spread`` times their type's median length."""
+    x = data.x[::max(1, data.n_frames // 100)]
+    outside = []
+    for t in (0, 1):
+        idx = data.ops.type_slices[t]
+        length = np.linalg.norm(x[:, data.ops.b[idx]] - x[:, data.ops.a[idx]], axis=2)
+        ratio = length / max(float(np.median(length)), 1e-300)
+        outside.append(np.mean((ratio > spread) | (ratio < 1.0 / spread)))
+    worst = float(max(outside))
+    if not np.isfinite(worst) or worst > tolerance:
+        raise InputError(f"{data.trajectory.source}: field 'positions': {100 * worst:.0f}% of "
+                         f"the structural springs are more than {spread:g}x longer or shorter "
+                         "than their median; expected a cloth trajectory (docs/cloth-model.md)")
+
+
 def fit(data, frames, plugins=(), *, model="5", rounds=3, block=5,
         smooth_windows=SMOOTH_WINDOWS, min_rows_per_coefficient=30):
     """Fit the base model and plug-in terms jointly on ``frames`` (see module docstring).
@@ -573,7 +591,13 @@ def fit(data, frames, plugins=(), *, model="5", rounds=3, block=5,
     Returns
     -------
     Fit
+
+    Raises
+    ------
+    InputError
+        When the positions are not a cloth (:func:`check_cloth`).
     """
+    check_cloth(data)
     plugins = tuple(plugins)
     frames = usable_frames(frames, data.n_frames)
     if frames.size == 0:

@@ -152,7 +152,12 @@ def truth_coefficients(spec, mass):
     if effect == "body_force":
         return np.asarray(truth["per_mass"]) * mass
     if effect == "anisotropic_stiffness":
-        return np.array([truth["a"] * spec["K"]])
+        # k = K (1 + a) along j and K (1 - a) along i: extra stiffness K a and -K a
+        return np.array([truth["a"] * spec["K"], -truth["a"] * spec["K"]])
     if effect == "nonuniform_mass":
-        return np.asarray(truth["beta"], dtype=float)
+        # inverse mass 1 + beta_i s_i + beta_j s_j in the library's centred row and column
+        # indicators (last row and column as reference): coefficient beta (s(r) - 1)
+        n = 17
+        s = 2.0 * np.arange(n - 1) / (n - 1) - 1.0
+        return np.concatenate([truth["beta"][0] * (s - 1.0), truth["beta"][1] * (s - 1.0)])
     return None

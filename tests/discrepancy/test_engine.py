@@ -1,0 +1,57 @@
+"""One identification engine: cloth_identify and the discrepancy workflow share it, and
+both recover K and tau on noise-free references."""
+
+import numpy as np
+import pytest
+
+from replication.cloth import identify_structured, regression
+from replication.cloth.identify import identify
+from replication.cloth.io import read_trajectory
+from replication.discrepancy import workflow
+from replication.errors import InputError
+
+SETTINGS = {"regression": {"first": 1, "stride": 5},
+            "tau_scan": {"n_grid": 40, "refine_evals": 20},
+            "refine": {"box": 0.02, "ea": {"pop_size": 8, "generations": 0}}}
+
+
+def test_both_workflows_call_the_same_engine():
+    assert identify_structured.regression.fit is regression.fit
+    assert workflow.regression.fit is regression.fit
+
+
+@pytest.mark.parametrize("tau", [0.1, 0.5])
+def test_both_recover_K_and_tau_within_1_percent(tau):
+    trajectory = read_trajectory(f"synthetic_data/cloth/reference_tau{tau}.npz")
+    blind = type(trajectory)(**{**trajectory.__dict__, "meta": {}})
+    best, _, _ = identify(blind, rng=0, budget=400, settings=SETTINGS)
+    assert abs(best[3] / 4.0 - 1) < 0.01 and abs(best[4] / tau - 1) < 0.01
+    result = workflow.analyse(blind, {"n_subsamples": 4}, rng=0)
+    assert abs(result["base"]["k"][0] / 4.0 - 1) < 0.01
+    assert abs(result["base"]["tau"][0] / tau - 1) < 0.01
+    assert result["named_effects"] == [] and result["unexplained"] is None
+
+
+def test_engine_is_exact_on_noise_free_data_and_holds_under_noise():
+    trajectory = read_trajectory("synthetic_data/cloth/reference_tau0.1.npz")
+    data = regression.prepare(trajectory)
+    exact = regression.fit(data, np.arange(data.n_frames - 1))
+    assert exact.how == "regression"
+    assert abs(exact.base.k[0] - 4.0) < 1e-8 and abs(exact.base.tau[0] - 0.1) < 1e-8
+    rng = np.random.default_rng(0)
+    noisy = trajectory.positions + rng.normal(scale=5e-3 * data.h,
+                                              size=trajectory.positions.shape)
+    noisy[:, 0, [0, -1]] = trajectory.positions[:, 0, [0, -1]]
+    fitted = regression.fit(regression.prepare(type(trajectory)(
+        **{**trajectory.__dict__, "positions": noisy, "velocities": None})),
+        np.arange(data.n_frames - 1))
+    assert abs(fitted.base.k[0] / 4.0 - 1) < 0.03 and abs(fitted.base.tau[0] / 0.1 - 1) < 0.03
+
+
+def test_engine_refuses_positions_that_are_not_a_cloth():
+    trajectory = read_trajectory("synthetic_data/cloth/reference_tau0.1.npz")
+    rng = np.random.default_rng(1)
+    junk = type(trajectory)(**{**trajectory.__dict__, "velocities": None,
+                               "positions": rng.normal(size=trajectory.positions.shape)})
+    with pytest.raises(InputError, match="expected a cloth trajectory"):
+        regression.fit(regression.prepare(junk), np.arange(100))

@@ -1,4 +1,4 @@
-"""``replicate``: the Hydra entry point (spec/cli-and-results.md).
+"""``replicate``: the Hydra entry point (docs/results.md).
 
 The only module that sees a DictConfig. Each experiment config names a ``runner``
 (``module:function``); the runner receives the resolved config as a plain dict and the

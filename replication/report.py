@@ -146,7 +146,7 @@ def speed_section(result):
     for name, goal in goals.items():
         value = result["metrics"].get(name)
         if isinstance(value, (int, float)):
-            rows.append(SummaryRow(f"speed: `{name}`", "n/a (issue goal)", fmt(value),
+            rows.append(SummaryRow(f"speed: `{name}`", "n/a (suite goal)", fmt(value),
                                    f"{goal[0]} {fmt(goal[1])}",
                                    "met" if _meets(value, goal) else "not met"))
     lines += ["", "Figures measured on this project's 2-core machine; the test-suite and "

@@ -1,4 +1,4 @@
-"""Writing and reading ``result.json`` (spec/cli-and-results.md)."""
+"""Writing and reading ``result.json`` (docs/results.md)."""
 
 from __future__ import annotations
 

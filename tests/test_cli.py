@@ -1,4 +1,4 @@
-"""The real command line, configs and result.json (spec/cli-and-results.md)."""
+"""The real command line, configs and result.json (docs/results.md)."""
 
 import json
 import os

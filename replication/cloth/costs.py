@@ -1,4 +1,4 @@
-"""The paper's costs (section 3.3; spec/cloth-model.md "Costs").
+"""The paper's costs (section 3.3; docs/cloth-model.md "Costs").
 
 Frame ``t+1`` is predicted from the recorded state at frame ``t`` by one model step;
 ``e_t = sum_p |x^_p - x_p|^2 + dtc^2 |v^_p - v_p|^2``, divided by ``n^2 h^2``. The full cost

@@ -1,4 +1,4 @@
-"""Runners of the cloth experiments of issue 2: reference runs, Figs. 8 and 11.
+"""Runners of the cloth model experiments (paper 3.2, 3.4): reference runs, Figs. 8 and 11.
 
 Each runner takes the resolved config (plain dict) and the output folder and returns the
 experiment's result keys; ``replication.cli`` writes ``result.json``.

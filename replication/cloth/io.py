@@ -1,4 +1,4 @@
-"""Cloth trajectory files (spec/data-formats.md): one ``.npz`` per trajectory.
+"""Cloth trajectory files (docs/data-formats.md): one ``.npz`` per trajectory.
 
 The reader refuses a bad file with one line naming the file, the field, what was found and
 what was expected. The writer is deterministic: the same arrays give the same bytes.
@@ -93,7 +93,7 @@ def read_trajectory(path):
     path = Path(path)
     if not path.exists():
         raise InputError(f"{path}: no such file; expected a trajectory .npz "
-                         "(shared/spec/data-formats.md)")
+                         "(docs/data-formats.md)")
     if path.is_dir():
         raise InputError(f"{path}: is a folder; expected a trajectory .npz file")
     try:
@@ -102,7 +102,7 @@ def read_trajectory(path):
     except (OSError, ValueError, zipfile.BadZipFile, EOFError) as error:
         reason = str(error).splitlines()[0] if str(error) else type(error).__name__
         raise InputError(f"{path}: cannot be read as .npz ({reason}); expected a trajectory "
-                         "file as in shared/spec/data-formats.md") from None
+                         "file as in docs/data-formats.md") from None
     for key in REQUIRED:
         if key not in raw:
             _fail(path, key, "no such key (keys: " + ", ".join(sorted(raw)) + ")",
@@ -198,7 +198,7 @@ def write_npz_deterministic(path, arrays):
 
 
 def write_trajectory(path, trajectory):
-    """Write a :class:`Trajectory` as spec/data-formats.md says (deterministic bytes)."""
+    """Write a :class:`Trajectory` as docs/data-formats.md says (deterministic bytes)."""
     arrays = {
         "positions": np.asarray(trajectory.positions, dtype=float),
         "dt": np.float64(trajectory.dt),

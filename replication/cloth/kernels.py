@@ -1,6 +1,6 @@
 """Compiled kernels of the cloth step (numba). One implementation of the step.
 
-``_step_into`` is the whole time step of spec/cloth-model.md for one parameter set;
+``_step_into`` is the whole time step of docs/cloth-model.md for one parameter set;
 the drivers below run it over a population (``prange``), over time (rollouts) or over
 recorded frames (one-step prediction errors for the paper's costs).
 """

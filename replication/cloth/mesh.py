@@ -1,4 +1,4 @@
-"""The 17x17 mesh and its six spring types (spec/cloth-model.md, paper Fig. 8)."""
+"""The 17x17 mesh and its six spring types (docs/cloth-model.md, paper Fig. 8)."""
 
 from __future__ import annotations
 
@@ -31,7 +31,7 @@ def springs(n=DEFAULT_N):
     a, b : (S,) int64 ndarray
         Flat particle indices ``p = i*n + j`` of the spring ends (``d = x_b - x_a``).
     kind : (S,) int64 ndarray
-        Spring type 0..5 as in spec/cloth-model.md, springs ordered by type.
+        Spring type 0..5 as in docs/cloth-model.md, springs ordered by type.
     """
     if n < 3:
         raise ValueError(f"n={n}: a mesh needs at least 3 particles per side")

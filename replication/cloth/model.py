@@ -1,4 +1,4 @@
-"""The cloth model of spec/cloth-model.md: immutable scene and parameters, pure step.
+"""The cloth model of docs/cloth-model.md: immutable scene and parameters, pure step.
 
 State is ``(x, v)`` with a leading population axis, shapes ``(pop, n*n, 3)``, flat
 particle index ``p = i*n + j``. Parameters are per spring type, shapes ``(pop, 6)``.

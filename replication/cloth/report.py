@@ -9,7 +9,7 @@ def reference_section(result):
     """Reference runs: files, hashes, and the costs at the true parameters."""
     lines = [
         "Paper: a 17x17 Provot cloth hanging from two corners, K = 4, tau = 0.1 and 0.5, "
-        "simulated by the contract in `shared/spec/cloth-model.md` (the paper leaves the "
+        "simulated by the contract in `docs/cloth-model.md` (the paper leaves the "
         "numerics open). Both costs must vanish at the true parameters.",
         "",
         "| run | sha256 (first 16) | small cost at truth | full cost at truth |",
@@ -96,7 +96,7 @@ def bench_section(result):
         f"Goal: at least {goal:.3g} spring updates per second: "
         + ("met." if rate >= goal else "**not met**."),
     ]
-    row = SummaryRow("speed goal: spring updates per second (pop. 100)", "n/a (issue goal)",
+    row = SummaryRow("speed goal: spring updates per second (pop. 100)", "n/a (suite goal)",
                      f"{rate:.3g}", f">= {goal:.3g}",
                      "beyond the paper" if rate >= goal else "not met")
     return Section("\n".join(lines), [row])

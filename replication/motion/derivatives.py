@@ -7,7 +7,7 @@ Conventions (written down once, used everywhere):
 - Both frames of a pair are smoothed by the same Gaussian of standard deviation ``sigma``
   pixels. The spatial derivatives are central differences ``(I[x+1] - I[x-1]) / 2`` of the
   average of the two smoothed frames, so they are true derivatives (scikit-image's
-  ``sobel`` would give twice this, see shared/NOTES.md). ``It`` is the difference of the
+  ``sobel`` would give twice this, see docs/pitfalls.md). ``It`` is the difference of the
   smoothed frames. All three are thus estimated at the half-frame ``t + 1/2``.
 - A border of ``border`` pixels (default ``ceil(3 sigma) + 1``) is marked invalid.
 """

@@ -1,4 +1,4 @@
-"""Runners of the motion experiments of issue 4 (paper 2.1-2.2, Figs. 1-4).
+"""Runners of the single-rotation experiments (paper 2.1-2.2, Figs. 1-4).
 
 Each runner takes the resolved config (plain dict) and the output folder, validates its
 settings before writing anything, and returns the experiment's result keys.

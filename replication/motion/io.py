@@ -1,4 +1,4 @@
-"""Image sequences (spec/data-formats.md): a folder of PNG/TIFF frames, or one ``.npz``.
+"""Image sequences (docs/data-formats.md): a folder of PNG/TIFF frames, or one ``.npz``.
 
 The reader refuses bad input with one line naming the file, the field, what was found and
 what was expected. Intensities are returned as float64: 8-bit data divided by 255, 16-bit
@@ -196,7 +196,7 @@ def read_sequence(path):
     path = Path(path)
     if not path.exists():
         raise InputError(f"{path}: no such file or folder; expected a folder of PNG/TIFF "
-                         "frames or an .npz with 'frames' (shared/spec/data-formats.md)")
+                         "frames or an .npz with 'frames' (docs/data-formats.md)")
     if path.is_dir():
         frames, labels, truth = _read_folder(path)
     elif path.suffix.lower() == ".npz":

@@ -3,7 +3,7 @@
 Built on :mod:`replication.motion.synth` (textures, C-shapes, rendering, camera degradation). Object
 ``k`` (label ``k + 1``) has a frame-0 shape (:func:`~replication.motion.synth.c_shape_mask`
 keywords: a disc is ``r_inner = 0, gap_deg = 0``), its own texture, and turns about its own
-centre ``(xi_k, eta_k)`` at ``omega_k`` rad/frame (coordinates of spec/data-formats.md:
+centre ``(xi_k, eta_k)`` at ``omega_k`` rad/frame (coordinates of docs/data-formats.md:
 ``x`` column, ``y`` row, ``omega > 0`` clockwise on screen). Objects are painted in list
 order, so a later object hides an earlier one where they meet.
 """

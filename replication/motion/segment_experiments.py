@@ -1,4 +1,4 @@
-"""Runners of the rigid-motion segmentation experiments of issue 5 (paper 2.3, Figs. 5-7).
+"""Runners of the rigid-motion segmentation experiments (paper 2.3, Figs. 5-7).
 
 Each runner takes the resolved config (plain dict) and the output folder, validates every
 setting and input before writing anything, and returns the experiment's result keys.

@@ -1,6 +1,6 @@
 """Synthetic sequences for paper 2.2: a textured C-shape turning on a textured background.
 
-Coordinates follow ``shared/spec/data-formats.md``: ``x`` is the column, ``y`` the row,
+Coordinates follow ``docs/data-formats.md``: ``x`` is the column, ``y`` the row,
 pixel centres at integers. A point of the object at ``(x, y)`` in frame 0 is at
 ``(xi, eta) + R(omega t) ((x, y) - (xi, eta))`` in frame ``t``, with
 ``R(a) = [[cos a, -sin a], [sin a, cos a]]``; its velocity is

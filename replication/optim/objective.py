@@ -1,4 +1,4 @@
-"""The one objective contract shared by every optimiser (STYLE.md).
+"""The one objective contract shared by every optimiser (docs/extending.md).
 
 ``evaluate(X: (pop, n_var)) -> (pop,)``: every optimiser, the paper's EAs and every
 baseline, scores the same batched function through an :class:`Objective`, which counts

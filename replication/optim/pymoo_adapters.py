@@ -1,11 +1,11 @@
 """pymoo 0.6.2 optimisers on an :class:`~replication.optim.objective.Objective`.
 
 Every algorithm sees the objective's box bounds and its batched ``evaluate``; evaluations
-are counted by the objective, not by pymoo (pymoo budgets overshoot, shared/NOTES.md).
+are counted by the objective, not by pymoo (pymoo budgets overshoot, docs/pitfalls.md).
 Algorithms that stop on their own tolerances before the budget is spent are restarted
 from a new random point with a new seed until the budget is spent, so that every
 optimiser uses the same number of evaluations. ``PatternSearch`` is not offered: it
-ignores ``seed`` and is not reproducible (shared/NOTES.md).
+ignores ``seed`` and is not reproducible (docs/pitfalls.md).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""A deliberately plain, independent implementation of spec/cloth-model.md.
+"""A deliberately plain, independent implementation of docs/cloth-model.md.
 
 Written from the contract text with Python loops and no shared code with
 ``replication.cloth``: it is the independent check that the compiled step follows the

@@ -1,4 +1,4 @@
-"""The compiled cloth step against the contract (spec/cloth-model.md)."""
+"""The compiled cloth step against the contract (docs/cloth-model.md)."""
 
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""The paper's costs on the reference runs (spec/cloth-model.md, "Costs")."""
+"""The paper's costs on the reference runs (docs/cloth-model.md, "Costs")."""
 
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""The sequence reader: formats of spec/data-formats.md, and one test per refused input."""
+"""The sequence reader: formats of docs/data-formats.md, and one test per refused input."""
 
 import json
 

@@ -1,4 +1,4 @@
-"""The generator: conventions of spec/data-formats.md and determinism."""
+"""The generator: conventions of docs/data-formats.md and determinism."""
 
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""Every optimiser survives a cost that is infinite or NaN on part of the box (issue 7).
+"""Every optimiser survives a cost that is infinite or NaN on part of the box.
 
 A simulation that blows up gives an infinite cost; a NaN must never reach a ranking. The
 objective here is a quadratic bowl on [0, 1]^2 with its minimum at ``CENTRE``, NaN where

@@ -22,7 +22,7 @@ OUTSIDE_EFFECTS = ("gust",)
 MAGNITUDES = {
     "linear_damping": (1.0, 6.0),        # c/m, 1/s
     "quadratic_drag": (0.5, 3.0),        # c_q/m, 1/m
-    "normal_fluid": (1.0, 6.0),          # C/m, 1/s (wind speed 0.5..2 m/s)
+    "normal_fluid": (100.0, 700.0),      # C/m, 1/(m^2 s): times the area ~h^2 (wind 0.5..2 m/s)
     "body_force": (0.3, 2.0),            # |f|/m, m/s^2
     "anisotropic_stiffness": (0.05, 0.3),  # |a|
     "nonuniform_mass": (0.05, 0.3),      # |beta|
@@ -94,9 +94,12 @@ def _force(spec, x, v, t, scene, ops):
     if effect == "quadratic_drag":
         return -truth["per_mass"][0] * m * np.linalg.norm(v, axis=2, keepdims=True) * v
     if effect == "normal_fluid":
-        nrm = geometry.normals(x, scene.n)
+        # Provot's fluid force on the particle's share of the surface: C A (n.(u - v)) n
+        area_normal = geometry.area_normals(x, scene.n)
+        unit = area_normal / np.linalg.norm(area_normal, axis=2, keepdims=True)
         relative = np.asarray(truth["wind"])[None, None, :] - v
-        return truth["per_mass"][0] * m * np.sum(nrm * relative, axis=2, keepdims=True) * nrm
+        return (truth["per_mass"][0] * m
+                * np.sum(area_normal * relative, axis=2, keepdims=True) * unit)
     if effect == "body_force":
         return m * np.asarray(truth["per_mass"])[None, None, :]
     if effect == "spring_damping":

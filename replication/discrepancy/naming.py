@@ -29,14 +29,22 @@ def candidate_names(model):
                  if not (model == "18" and name == "anisotropic_stiffness"))
 
 
-def wald(theta, cov, nonnegative):
-    """Wald statistic of ``theta = 0``; 0 when a must-be-nonnegative coefficient is < 0."""
-    if any(theta[i] < 0 for i in nonnegative):
-        return 0.0
-    try:
-        return float(theta @ np.linalg.solve(cov, theta))
-    except np.linalg.LinAlgError:
-        return 0.0
+def wald(theta, cov, nonnegative, *, rcond=1e-9):
+    """Wald statistic of ``theta = 0`` and its degrees of freedom.
+
+    Directions of ``cov`` with eigenvalues below ``rcond`` times the largest are left out
+    (a profile coefficient with no data outside the constraint, e.g. the pinned row, is not
+    tested), and the degrees of freedom are the directions kept. The statistic is 0 when a
+    must-be-nonnegative coefficient is < 0.
+    """
+    if any(theta[i] < 0 for i in nonnegative) or not np.all(np.isfinite(cov)):
+        return 0.0, len(theta)
+    values, vectors = np.linalg.eigh(0.5 * (cov + cov.T))
+    if values.size == 0 or values[-1] <= 0:
+        return 0.0, len(theta)
+    keep = values > rcond * values[-1]
+    projected = vectors[:, keep].T @ theta
+    return float(np.sum(projected ** 2 / values[keep])), int(keep.sum())
 
 
 def score_candidates(data, fit, frames, *, selected=(), model="5", alpha=1e-3,
@@ -69,12 +77,12 @@ def score_candidates(data, fit, frames, *, selected=(), model="5", alpha=1e-3,
         cols = np.r_[kept, np.arange(slices[name].start, slices[name].stop)]
         theta, cov = iv_solve(G, hz, cols, clusters, labels)
         effect = fx.get_effect(name)
-        return theta, cov, wald(theta[n_kept:], cov[n_kept:, n_kept:], effect.nonnegative)
+        w, df = wald(theta[n_kept:], cov[n_kept:, n_kept:], effect.nonnegative)
+        return theta, cov, w, df
 
     out = {}
     for name in names:
-        theta, _, w = solve(name)
-        df = slices[name].stop - slices[name].start
+        theta, _, w, df = solve(name)
         threshold = float(stats.chi2.isf(alpha / len(candidate_names(model)), df))
         out[name] = {"wald": w, "df": df, "threshold": threshold,
                      "significant": bool(w > threshold),

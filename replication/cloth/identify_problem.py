@@ -184,7 +184,7 @@ def is_success(vector, truth, rtol):
 
 def named(vector, names, cost=None):
     """A parameter vector as ``{name: value}`` (plus ``cost``); 18-parameter vectors as
-    ``{rest: [6], k: [6], tau: [6]}`` (spec/cli-and-results.md)."""
+    ``{rest: [6], k: [6], tau: [6]}`` (docs/results.md)."""
     vector = np.asarray(vector, float)
     if len(names) == 18:
         out = {"rest": vector[0:6].tolist(), "k": vector[6:12].tolist(),

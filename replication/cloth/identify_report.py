@@ -140,7 +140,7 @@ def baselines_section(result):
         f"used. {cfg['n_seeds']} seeds per optimiser and reference run; budget "
         f"{budgets[-1]} evaluations"
         + ("" if budgets[-1] >= 20000 else " (a quick variant, not part of `replicate-all`; "
-           "`cloth_baselines_budgets` runs the issue's fixed budgets 1k, 5k and 20k)")
+           "`cloth_baselines_budgets` runs the fixed budgets 1k, 5k and 20k)")
         + ". Success: all parameters within "
         f"{fmt(100 * cfg['success_rtol'])}% of the truth for the best-so-far point. "
         "CMA-ES (its own stopping rules) and Nelder-Mead (simplex below 1e-8 of the bounds) "
@@ -184,7 +184,7 @@ def baselines_section(result):
                    if n not in ("structured",)]
         best_general = max(general, key=lambda item: item[1] or 0.0)
         rows.append(SummaryRow(
-            f"general optimisers on the small cost, {label} (issue 3)", "n/a",
+            f"general optimisers on the small cost, {label} (suite goal)", "n/a",
             f"best: {best_general[0]} {fmt(100 * (best_general[1] or 0.0), 3)}% at "
             f"{budgets[-1]} evaluations", "report honestly", "beyond the paper"))
     lines += [f"![ECDF]({result['figures'][0]})", "",
@@ -299,7 +299,7 @@ def ci_section(result):
             + ", ".join(f"{name} {_pct(err)} (tolerance {fmt(100 * result['tolerance'][name])}%)"
                         for name, err in errors.items()) + f"; {result['n_evals']} evaluations.")
     return Section(text, [SummaryRow("CI check: good case identified within tolerance "
-                                     "(issue 3)", "n/a", "passed", "config tolerances",
+                                     "(suite goal)", "n/a", "passed", "config tolerances",
                                      "beyond the paper")])
 
 

@@ -106,7 +106,9 @@ def structure(r, frames, free, n, *, window=10, patch=4, directions=None, floor=
 
     Returns
     -------
-    dict with ``sigma``, ``Q`` (all), ``Q_by_window`` (W,), ``Q_by_patch`` (patches,),
+    dict with ``sigma``, ``Q`` (the larger of ``Q_patch``, over patches of ``patch x patch``
+    particles, and ``Q_sheet``, over the whole sheet), ``Q_by_window`` (W,), ``Q_by_patch``
+    (patches,),
     ``Q_by_component`` {x, y, z}, and ``Q_normal``/``Q_tangential`` when ``directions``.
     """
     if mask is not None and not np.any(mask):
@@ -135,8 +137,15 @@ def structure(r, frames, free, n, *, window=10, patch=4, directions=None, floor=
 
     q, weight = q_of(sums[:, free])
     has = weight.sum() > 0
-    out = {"sigma": sigma, "Q": float(np.sum(q * weight[..., None]) / (3 * weight.sum()))
-           if has else 0.0,
+    q_patch = float(np.sum(q * weight[..., None]) / (3 * weight.sum())) if has else 0.0
+    # the same over the whole sheet: a force acting alike everywhere (a gust, a push)
+    # shows there with sqrt(particles) times its single-particle signal-to-noise ratio
+    n_complete = complete.sum(axis=1)
+    sheet = np.sum(sums[:, free] * complete[..., None], axis=1)
+    used = n_complete > 0
+    q_sheet = (float(np.mean(sheet[used] ** 2 / (n_complete[used, None] * var)))
+               if np.any(used) else 0.0)
+    out = {"sigma": sigma, "Q": max(q_patch, q_sheet), "Q_patch": q_patch, "Q_sheet": q_sheet,
            "Q_by_window": mean_over(q, weight, (1, 2)).tolist() if has else [],
            "window_starts": starts.tolist(),
            "Q_by_patch": mean_over(q, weight, (0, 2)).tolist() if has else [],

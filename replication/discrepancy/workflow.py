@@ -87,12 +87,30 @@ def _quick_q(data, fit, frames, settings, name, score, model, mask):
     return _q(data, trial, frames, settings, mask)[0]
 
 
-def _describe(effect_fit, name, evidence):
+def _standard_errors(fit, name, model):
+    """Standard errors of one effect's coefficients from the fit's cluster-robust
+    covariance (None for a fit through the constraint, which has none)."""
+    if fit.cov is None:
+        return None
+    at = regression.n_base(model)
+    for plugin, theta in fit.terms:
+        width = len(np.asarray(theta))
+        if plugin.name == name:
+            variances = np.diag(fit.cov)[at:at + width]
+            return np.sqrt(np.maximum(variances, 0.0)).tolist()
+        at += width
+    return None
+
+
+def _describe(effect_fit, name, evidence, model):
     effect = fx.get_effect(name)
     theta = effect_fit.term(name)
     base = {"k": effect_fit.base.k.tolist()}
+    errors = _standard_errors(effect_fit, name, model)
     return {"name": name,
             "parameters": {"coefficients": dict(zip(effect.coefficients, theta.tolist())),
+                           "standard_errors": (dict(zip(effect.coefficients, errors))
+                                               if errors is not None else None),
                            **effect.physical(theta, base)},
             "evidence": evidence}
 
@@ -204,7 +222,7 @@ def analyse(trajectory, config=None, *, rng=None):
         name, q_current, current, gap_current, r_current, evidence = best
         selected.append(name)
         named.append((name, evidence))
-    named_effects = [_describe(current, name, evidence) for name, evidence in named]
+    named_effects = [_describe(current, name, evidence, model) for name, evidence in named]
     final = current if selected else base_fit
     located_final = where(data, final, frames, window=settings["window"],
                           patch=settings["patch"], mask=mask[frames]) if selected else located

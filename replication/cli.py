@@ -4,15 +4,25 @@ The only module that sees a DictConfig. Each experiment config names a ``runner`
 (``module:function``); the runner receives the resolved config as a plain dict and the
 output folder, returns its result keys, and this module adds the common keys and writes
 ``result.json`` atomically.
+
+Boundaries (docs/results.md, "Refusals, warnings, interruptions"): the config is checked
+(:mod:`replication.guard`) before any work, Hydra's own refusals included; the runner
+writes into a staging folder whose files are moved to ``out`` (and to ``figure_dir`` /
+``data_dir``) only when it succeeds; Ctrl-C ends the run with status 130 and nothing
+written; ``limits.max_seconds`` bounds the run's time.
 """
 
 from __future__ import annotations
 
+import errno
 import importlib
 import os
+import shutil
+import signal
 import sys
 import tempfile
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 import hydra
@@ -20,13 +30,22 @@ from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
 from replication.errors import InputError
-from replication.provenance import code_hash, config_hash
-from replication.results import package_versions, read_result, write_json_atomic
+from replication.guard import LIMITS, check_config, check_out, check_writable
+from replication.provenance import run_provenance
+from replication.results import (package_versions, read_result_or_none, to_jsonable,
+                                 write_json_atomic)
 
 CONFIG_DIR = str(Path(__file__).resolve().parent.parent / "configs")
 
+# config keys naming output folders besides ``out``: staged like ``out``
+OUTPUT_KEYS = ("figure_dir", "figures_dir", "data_dir")
+
 if not OmegaConf.has_resolver("or_default"):
     OmegaConf.register_new_resolver("or_default", lambda value, default: value or default)
+
+
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C (SIGINT) or SIGTERM during a run."""
 
 
 def available_experiments():
@@ -40,77 +59,306 @@ def resolve_runner(spec):
     return getattr(importlib.import_module(module_name), function_name)
 
 
-def check_writable(out):
-    """Refuse an output folder that cannot be created or written, before any work."""
-    out = Path(out)
+def experiment_defaults(name):
+    """The resolved config of experiment ``name`` without any other override."""
+    from hydra import compose, initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+
+    overrides = [f"experiment={name}"]
+    if GlobalHydra.instance().is_initialized():
+        cfg = compose(config_name="config", overrides=overrides)
+    else:
+        with initialize_config_dir(config_dir=CONFIG_DIR, version_base="1.3"):
+            cfg = compose(config_name="config", overrides=overrides)
+    return OmegaConf.to_container(cfg, resolve=True)
+
+
+class Staging:
+    """A hidden folder next to ``out`` that receives everything a runner writes.
+
+    :meth:`commit` moves its files to ``out`` and to the configured output folders
+    (``figure_dir``, ``data_dir``), with the staging paths in JSON files and in the result
+    replaced by the real ones; :meth:`discard` removes it.
+    """
+
+    def __init__(self, config, out):
+        self.out = Path(out)
+        anchor = self.out.parent
+        while not anchor.exists() and anchor.parent != anchor:
+            anchor = anchor.parent
+        self.root = Path(tempfile.mkdtemp(prefix=f".{self.out.name or 'out'}.partial-",
+                                          dir=anchor)).resolve()
+        self.targets = {self.root / "out": self.out}
+        self.config = dict(config)
+        for key in OUTPUT_KEYS:
+            value = config.get(key)
+            if isinstance(value, str) and value:
+                staged = self.root / key
+                self.targets[staged] = Path(value)
+                self.config[key] = str(staged)
+        for staged in self.targets:
+            staged.mkdir()
+
+    def _replacements(self):
+        pairs = [(str(staged), str(real)) for staged, real in self.targets.items()]
+        return sorted(pairs, key=lambda pair: -len(pair[0]))
+
+    def fix(self, value):
+        """``value`` (a result) with every staging path replaced by the real one."""
+        if isinstance(value, dict):
+            return {k: self.fix(v) for k, v in value.items()}
+        if isinstance(value, (list, tuple)):
+            return [self.fix(v) for v in value]
+        if isinstance(value, str):
+            for staged, real in self._replacements():
+                value = value.replace(staged, real)
+        return value
+
+    def _fix_json(self, path):
+        import json
+
+        text = path.read_text()
+        for staged, real in self._replacements():
+            text = text.replace(json.dumps(staged)[1:-1], json.dumps(real)[1:-1])
+        path.write_text(text)
+
+    def commit(self):
+        """Move every staged file to its real place."""
+        for staged, real in self.targets.items():
+            for item in sorted(staged.rglob("*")):
+                if item.is_dir():
+                    continue
+                if item.suffix == ".json":
+                    self._fix_json(item)
+                target = real / item.relative_to(staged)
+                target.parent.mkdir(parents=True, exist_ok=True)
+                try:
+                    os.replace(item, target)
+                except OSError as error:
+                    if error.errno != errno.EXDEV:
+                        raise
+                    shutil.move(str(item), str(target))
+        self.discard()
+
+    def discard(self):
+        shutil.rmtree(self.root, ignore_errors=True)
+
+
+class TimeLimit(InputError):
+    """The run took longer than ``limits.max_seconds``."""
+
+
+@contextmanager
+def time_limit(seconds):
+    """Raise :class:`TimeLimit` in the main thread after ``seconds`` (no limit elsewhere)."""
+    def expire(signum, frame):
+        raise TimeLimit(f"limits.max_seconds={seconds:g}: the run took longer; raise the "
+                        "limit (limits.max_seconds=S) or use smaller settings")
+
     try:
-        out.mkdir(parents=True, exist_ok=True)
-        fd, probe = tempfile.mkstemp(dir=out, prefix=".write-probe-")
-        os.close(fd)
-        os.unlink(probe)
-    except OSError as error:
-        raise InputError(f"out={out}: cannot write there ({error.strerror or error})") from None
+        previous = signal.signal(signal.SIGALRM, expire)
+    except ValueError:  # not the main thread
+        yield
+        return
+    signal.setitimer(signal.ITIMER_REAL, float(seconds))
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
 
 
-def run_experiment(config, out):
-    """Run the experiment described by the plain-dict ``config``; return the result dict."""
+def report_warnings(result, strict):
+    """Print the runner's ``warnings`` on stderr; with ``strict`` refuse the run."""
+    warnings = [str(w) for w in result.get("warnings") or []]
+    for warning in warnings:
+        print(f"warning: {warning}", file=sys.stderr)
+    if strict and warnings:
+        more = f" (and {len(warnings) - 1} more warning(s))" if len(warnings) > 1 else ""
+        raise InputError(f"strict=true: {warnings[0]}{more}")
+    return warnings
+
+
+def run_experiment(config, out, defaults=None):
+    """Run the experiment described by the plain-dict ``config``; return the result dict.
+
+    ``defaults``: the experiment's own config (without overrides), against which the
+    config's types are checked; composed here when not given.
+    """
     if not config.get("runner"):
         raise InputError(
             "no experiment chosen: pass experiment=NAME, one of "
             + ", ".join(available_experiments())
         )
-    runner = resolve_runner(config["runner"])
+    if defaults is None and config.get("name") in available_experiments():
+        defaults = experiment_defaults(config["name"])
+    check_config(config, defaults)
+    check_out(str(out), force=config.get("force", False))
     check_writable(out)
-    provenance = {"config_sha256": config_hash(config),
-                  "code_sha256": code_hash(config["runner"])}
-    previous = read_result(Path(out) / "result.json") if config.get("resume") else None
+    runner = resolve_runner(config["runner"])
+    provenance = run_provenance(config)
+    previous = read_result_or_none(Path(out) / "result.json") if config.get("resume") \
+        else None
     if previous is not None and previous.get("provenance") == provenance:
         print(f"up to date: {Path(out) / 'result.json'} (resume=true)", file=sys.stderr)
         return previous
-    start = time.perf_counter()
-    result = runner(config, Path(out))
-    wall = time.perf_counter() - start
-    payload = {
-        "experiment": config.get("name"),
-        "config": config,
-        "seed": config.get("seed"),
-        "versions": package_versions(),
-        "wall_seconds": wall,
-        "provenance": provenance,
-    }
-    payload.update(result)
-    write_json_atomic(Path(out) / "result.json", payload)
+    staging = Staging(config, out)
+    try:
+        with time_limit(LIMITS["max_seconds"]):
+            start = time.perf_counter()
+            result = runner(staging.config, staging.root / "out")
+            wall = time.perf_counter() - start
+        result = staging.fix(to_jsonable(result))
+        warnings = report_warnings(result, config.get("strict", False))
+        payload = {
+            "experiment": config.get("name"),
+            "config": config,
+            "seed": config.get("seed"),
+            "versions": package_versions(),
+            "wall_seconds": wall,
+            "provenance": provenance,
+        }
+        payload.update(result)
+        payload["warnings"] = warnings
+        staging.commit()
+        write_json_atomic(Path(out) / "result.json", payload)
+    finally:
+        staging.discard()
     print(f"wrote {Path(out) / 'result.json'}", file=sys.stderr)
     return payload
+
+
+def _error(message, status=2):
+    print(f"error: {message}", file=sys.stderr, flush=True)
+    sys.exit(status)
+
+
+def _os_message(error):
+    where = f"{error.filename}: " if error.filename else ""
+    if error.errno == errno.ENOSPC:
+        return f"{where}no space left on device; nothing written"
+    return f"{where}{error.strerror or error}"
+
+
+def _interrupted():
+    """Leave at once with status 130 (no interpreter teardown with numba threads busy)."""
+    print("error: interrupted; nothing written", file=sys.stderr, flush=True)
+    sys.stdout.flush()
+    os._exit(130)
 
 
 @hydra.main(config_path=CONFIG_DIR, config_name="config", version_base="1.3")
 def _hydra_main(cfg: DictConfig):
     try:
         config = OmegaConf.to_container(cfg, resolve=True, throw_on_missing=True)
-        out = config["out"] or HydraConfig.get().runtime.output_dir
+        out = config["out"]
+        if out is None:
+            out = HydraConfig.get().runtime.output_dir
         config["out"] = out
         run_experiment(config, out)
     except InputError as error:
-        print(f"error: {error}", file=sys.stderr)
-        sys.exit(2)
+        _error(error)
     except FileNotFoundError as error:
-        print(f"error: {error.filename}: file not found", file=sys.stderr)
-        sys.exit(2)
+        _error(f"{error.filename}: file not found")
+    except OSError as error:
+        _error(_os_message(error))
+
+
+def _hydra_message(error):
+    """One line from a Hydra or OmegaConf refusal."""
+    text = str(error)
+    if "Could not find 'experiment/" in text:
+        name = text.split("Could not find 'experiment/", 1)[1].split("'", 1)[0]
+        return (f"experiment={name}: unknown experiment; expected one of "
+                + ", ".join(available_experiments()))
+    lines = [line.strip() for line in text.splitlines() if line.strip()]
+    lines = [line for line in lines if not line.startswith(("full_key", "object_type",
+                                                            "Set the environment"))]
+    return "; ".join(lines[:2]) or type(error).__name__
+
+
+def precheck(overrides):
+    """Compose the config of a single run as Hydra will and check it (:func:`check_config`,
+    ``out``) before Hydra creates any folder. Returns the output folder."""
+    from hydra import compose, initialize_config_dir
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    from hydra.core.global_hydra import GlobalHydra
+
+    GlobalHydra.instance().clear()
+    try:
+        with initialize_config_dir(config_dir=CONFIG_DIR, version_base="1.3"):
+            cfg = compose(config_name="config", overrides=list(overrides))
+            config = OmegaConf.to_container(cfg, resolve=True, throw_on_missing=True)
+            name = config.get("name")
+            defaults = None
+            if name in available_experiments():
+                defaults = OmegaConf.to_container(
+                    compose(config_name="config", overrides=[f"experiment={name}"]),
+                    resolve=True)
+    except (HydraException, OmegaConfBaseException, ValueError) as error:
+        raise InputError(_hydra_message(error)) from None
+    if not config.get("runner"):
+        raise InputError("no experiment chosen: pass experiment=NAME, one of "
+                         + ", ".join(available_experiments()))
+    out = config.get("out")
+    if out is None:
+        out = f"results/{config['name']}"
+    check_config(config, defaults)
+    check_out(out, force=config.get("force", False))
+    check_writable(out)
+    return out
+
+
+def _missing_chain(path):
+    """The folders of ``path`` that do not exist yet, deepest first."""
+    chain, path = [], Path(path).absolute()
+    while not path.exists() and path.parent != path:
+        chain.append(path)
+        path = path.parent
+    return chain
+
+
+def _remove_empty(chain):
+    for folder in chain:
+        try:
+            folder.rmdir()
+        except OSError:
+            return
 
 
 def main():
     """Console-script entry point."""
-    # Hydra creates the run folder (``out``) before the task runs: refuse an unwritable one
-    # here, with one line, instead of Hydra's traceback.
-    for arg in sys.argv[1:]:
-        if arg.startswith("out=") and "," not in arg:
+    sys.argv = [("strict=true" if arg == "--strict" else arg) for arg in sys.argv]
+    args = sys.argv[1:]
+
+    def terminate(signum, frame):
+        raise Interrupted()
+
+    previous = signal.signal(signal.SIGTERM, terminate)
+    chain = []
+    try:
+        if not any(arg.startswith("-") for arg in args):
+            # a single run: refuse bad config before Hydra creates the run folder
             try:
-                check_writable(arg[len("out="):])
+                out = precheck(args)
             except InputError as error:
-                print(f"error: {error}", file=sys.stderr)
-                sys.exit(2)
-    _hydra_main()
+                _error(error)
+            except OSError as error:
+                _error(_os_message(error))
+            chain = _missing_chain(out)
+        try:
+            _hydra_main()
+        except SystemExit as done:
+            if done.code not in (0, None):
+                _remove_empty(chain)
+            raise
+    except KeyboardInterrupt:
+        _remove_empty(chain)
+        _interrupted()
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

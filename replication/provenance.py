@@ -22,8 +22,10 @@ CORE_MODULES = ("replication.cli", "replication.provenance", "replication.result
 
 
 # config keys that do not change a result: where it goes, whether to resume, how the
-# report shows it, the tests' small settings and the default metrics of sweep plots
-NOT_RESULT_KEYS = ("out", "resume", "report", "smoke", "sweep_metrics")
+# report shows it, the tests' small settings, the default metrics of sweep plots, whether
+# warnings refuse the run, whether results/ may be overwritten and the size/time limits
+NOT_RESULT_KEYS = ("out", "resume", "report", "smoke", "sweep_metrics", "strict", "force",
+                   "limits")
 
 
 def config_hash(config):
@@ -109,3 +111,41 @@ def file_sha256(path):
         for block in iter(lambda: handle.read(1 << 20), b""):
             digest.update(block)
     return digest.hexdigest()
+
+
+def input_paths(config):
+    """The data files and folders a run reads, as its config names them: ``data.path``,
+    else ``default_data``, and the files of ``references`` and ``data_file``."""
+    data = config.get("data") if isinstance(config.get("data"), dict) else {}
+    paths = [data.get("path") or config.get("default_data")]
+    references = config.get("references")
+    if isinstance(references, dict):
+        paths.extend(references.values())
+    paths.append(config.get("data_file"))
+    return [str(p) for p in paths if isinstance(p, str) and p]
+
+
+def path_sha256(path):
+    """sha256 of a file's bytes, or over the relative names and bytes of every file below
+    a folder; ``None`` when the path does not exist (yet)."""
+    path = Path(path)
+    if path.is_file():
+        return file_sha256(path)
+    if not path.is_dir():
+        return None
+    digest = hashlib.sha256()
+    for item in sorted(p for p in path.rglob("*") if p.is_file()):
+        digest.update(str(item.relative_to(path)).encode())
+        digest.update(file_sha256(item).encode())
+    return digest.hexdigest()
+
+
+def inputs_hash(config):
+    """``{path: sha256}`` of the run's input files and folders (:func:`input_paths`)."""
+    return {path: path_sha256(path) for path in input_paths(config)}
+
+
+def run_provenance(config):
+    """The ``provenance`` of a run: config, code and input hashes."""
+    return {"config_sha256": config_hash(config), "code_sha256": code_hash(config["runner"]),
+            "inputs_sha256": inputs_hash(config)}

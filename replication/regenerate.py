@@ -1,7 +1,8 @@
 """``replicate-all``: regenerate every figure, table and REPORT.md.
 
 Runs each experiment that has a ``report`` block through the real command line
-(``replicate experiment=NAME out=results/NAME``), up to ``--jobs`` at a time. A result is
+(``replicate experiment=NAME out=results/NAME force=true``: ``force`` lets a run write
+into ``results/``), up to ``--jobs`` at a time. A result is
 recomputed only when its resolved config, the code its runner imports
 (:func:`replication.provenance.code_hash`) or an experiment it depends on
 (``report.depends_on``) changed since it was made (:func:`stale_experiments`), so a fresh
@@ -31,9 +32,9 @@ from pathlib import Path
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
-from replication.provenance import PROJECT_ROOT, code_hash, config_hash
+from replication.provenance import PROJECT_ROOT, run_provenance
 from replication.report import CONFIG_DIR, build_report, experiment_entries
-from replication.results import read_result
+from replication.results import read_result_or_none
 
 CACHE_FILE = ".regenerate-cache.json"
 
@@ -51,18 +52,33 @@ def resolved_configs(names, config_dir=CONFIG_DIR):
 
 
 def experiment_keys(entries, configs):
-    """Provenance (config and code hashes, as ``replicate`` writes them) and cache key
+    """Provenance (config, code and input hashes, as ``replicate`` writes them) and cache key
     (provenance plus the keys of the experiments it depends on) of each experiment."""
     provenance, keys = {}, {}
     for _, name, block in entries:
         config = configs[name]
-        provenance[name] = {"config_sha256": config_hash(config),
-                            "code_sha256": code_hash(config["runner"])}
+        provenance[name] = run_provenance(config)
         digest = hashlib.sha256(json.dumps(provenance[name], sort_keys=True).encode())
         for dependency in block.get("depends_on", []):
             digest.update(keys.get(dependency, dependency).encode())
         keys[name] = digest.hexdigest()
     return provenance, keys
+
+
+def _read_json_object(path):
+    """The JSON object in ``path``; ``{}`` (with a note) when it is missing or unreadable."""
+    path = Path(path)
+    if not path.exists():
+        return {}
+    try:
+        value = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+        print(f"note: {path}: unreadable ({error}); ignored", file=sys.stderr)
+        return {}
+    if not isinstance(value, dict):
+        print(f"note: {path}: not a JSON object; ignored", file=sys.stderr)
+        return {}
+    return value
 
 
 def _cached(cache, name):
@@ -73,8 +89,8 @@ def _cached(cache, name):
 
 def expected_seconds(results, cache, names):
     """Last recorded wall time of each experiment: the cache, else the last full run."""
-    full = results / "regenerate-full.json"
-    recorded = json.loads(full.read_text()).get("experiments", {}) if full.exists() else {}
+    recorded = _read_json_object(results / "regenerate-full.json").get("experiments", {})
+    recorded = recorded if isinstance(recorded, dict) else {}
     expected = {}
     for name in names:
         seconds = _cached(cache, name).get("seconds", recorded.get(name))
@@ -85,15 +101,16 @@ def expected_seconds(results, cache, names):
 def stale_experiments(entries, results, provenance, keys, cache, *, force=False):
     """Names of the experiments to recompute.
 
-    A result is current when it exists, carries the provenance (config and code hashes)
-    this config and code give, and no experiment it depends on is recomputed; the cache
+    A result is current when it exists (an unreadable ``result.json`` counts as missing),
+    carries the provenance (config, code and input hashes) this config, code and data
+    give, and no experiment it depends on is recomputed; the cache
     of keys (which include the dependencies' keys) catches a dependency recomputed by an
     earlier, interrupted run. Without a cache (a fresh clone) the committed results
     whose provenance matches are current.
     """
     current = {}
     for _, name, _ in entries:
-        result = read_result(results / name / "result.json")
+        result = read_result_or_none(results / name / "result.json")
         current[name] = (not force and result is not None
                          and result.get("provenance") == provenance[name]
                          and _cached(cache, name).get("key", keys[name]) == keys[name])
@@ -150,7 +167,7 @@ def replicate_command(results):
     """``command_for(name)`` of :func:`run_scheduled`: the real ``replicate`` run."""
     def command_for(name):
         return [sys.executable, "-m", "replication.cli", f"experiment={name}",
-                f"out={Path(results) / name}"]
+                f"out={Path(results) / name}", "force=true"]
     return command_for
 
 
@@ -264,7 +281,7 @@ def main(argv=None):
     results = Path(args.results)
     results.mkdir(parents=True, exist_ok=True)
     cache_path = results / CACHE_FILE
-    cache = json.loads(cache_path.read_text()) if cache_path.exists() else {}
+    cache = _read_json_object(cache_path)
     entries = experiment_entries()
     blocks = {name: block for _, name, block in entries}
     only = {name for name in args.only.split(",") if name}

@@ -15,7 +15,7 @@ from pathlib import Path
 from omegaconf import OmegaConf
 
 from replication.provenance import PROJECT_ROOT
-from replication.results import read_result
+from replication.results import read_result_or_none
 
 CONFIG_DIR = PROJECT_ROOT / "configs" / "experiment"
 
@@ -72,7 +72,7 @@ def build_report(results_dir):
     results_dir = Path(results_dir)
     sections, summary, missing, failed = [], [], [], []
     for _, name, block in experiment_entries():
-        result = read_result(results_dir / name)
+        result = read_result_or_none(results_dir / name)
         heading = f"## {block['title']}\n"
         if result is None:
             missing.append(name)

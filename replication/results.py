@@ -12,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
+from replication.errors import InputError
+
 TRACKED_PACKAGES = (
     "numpy", "scipy", "scikit-image", "matplotlib", "pymoo", "hydra-core", "numba",
 )
@@ -69,11 +71,39 @@ def write_json_atomic(path, payload):
         raise
 
 
+class BadResult(InputError):
+    """A ``result.json`` that is not a JSON object (truncated, empty, a list...)."""
+
+
 def read_result(path):
-    """Read one ``result.json``; ``None`` if it does not exist."""
+    """Read one ``result.json``; ``None`` if it does not exist.
+
+    Raises :class:`BadResult` (one line naming the file) when it cannot be read as UTF-8
+    JSON holding an object.
+    """
     path = Path(path)
     if path.is_dir():
         path = path / "result.json"
     if not path.exists():
         return None
-    return json.loads(path.read_text())
+    try:
+        value = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+        reason = str(error).splitlines()[0] if str(error) else type(error).__name__
+        raise BadResult(f"{path}: cannot be read as JSON ({reason}); expected a result.json "
+                        "object (docs/results.md)") from None
+    if not isinstance(value, dict):
+        raise BadResult(f"{path}: a JSON {type(value).__name__}; expected a result.json "
+                        "object (docs/results.md)")
+    return value
+
+
+def read_result_or_none(path):
+    """:func:`read_result`, with ``None`` (and a note on stderr) for an unreadable file."""
+    try:
+        return read_result(path)
+    except BadResult as error:
+        import sys
+
+        print(f"note: {error}; treated as missing", file=sys.stderr)
+        return None

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
 import math
 import re
 import sys
@@ -63,8 +62,21 @@ def overrides_of(run_dir):
 def load_results(sweep_dir):
     """``(run folder relative to sweep_dir, result dict)`` for every ``result.json`` below
     ``sweep_dir``, sorted by folder."""
-    return [(path.parent.relative_to(sweep_dir), json.loads(path.read_text()))
+    from replication.results import read_result
+
+    return [(path.parent.relative_to(sweep_dir), read_result(path))
             for path in sorted(Path(sweep_dir).rglob("result.json"))]
+
+
+def check_one_experiment(results):
+    """Refuse results of more than one experiment (one CSV would mix their columns)."""
+    names = {}
+    for run, result in results:
+        names.setdefault(str(result.get("experiment")), str(run))
+    if len(names) > 1:
+        pairs = ", ".join(f"{name} ({run or '.'})" for name, run in sorted(names.items()))
+        raise SweepError(f"results of {len(names)} experiments below the folder: {pairs}; "
+                         "expected one sweep of one experiment")
 
 
 def gather(sweep_dir, results=None):
@@ -227,7 +239,14 @@ def main(argv=None):
     if not sweep_dir.is_dir():
         print(f"error: {sweep_dir}: no such folder", file=sys.stderr)
         return 2
-    results = load_results(sweep_dir)
+    from replication.errors import InputError
+
+    try:
+        results = load_results(sweep_dir)
+        check_one_experiment(results)
+    except (InputError, SweepError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
     rows = gather(sweep_dir, results)
     if not rows:
         print(f"error: {sweep_dir}: no result.json below it", file=sys.stderr)

@@ -99,6 +99,14 @@ def fig11_reconstruction(config, out):
         check(len(entry["params"]) in (5, 18),
               f"reconstructions: '{entry['label']}' has {len(entry['params'])} parameters; "
               "expected 5 (l01, l23, l45, K, tau) or 18")
+    stride = config["gif_stride"]
+    check(isinstance(stride, int) and not isinstance(stride, bool) and stride >= 1,
+          f"gif_stride={stride!r}: expected an integer >= 1")
+    for entry in sets:
+        check(all(isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)
+                  for v in entry["params"]),
+              f"reconstructions: '{entry['label']}' params {entry['params']}: expected "
+              "finite numbers")
     frames = [int(t) for t in config["frames"]]
     check(all(0 <= t < trajectory.n_frames for t in frames),
           f"frames={frames}: expected frame indices in 0..{trajectory.n_frames - 1}")

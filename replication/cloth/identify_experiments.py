@@ -60,6 +60,26 @@ def _identify(config, trajectory, rng):
                     cost=config["cost"], bounds=config["bounds"], settings=settings)
 
 
+# a parameter within this fraction of its search interval from a bound is "at the bound"
+AT_BOUND = 1e-3
+
+
+def bound_warnings(best, space, names):
+    """One warning per identified parameter at (within :data:`AT_BOUND` of the interval
+    of) a bound of the search space: the optimum may lie outside it, or the data may not
+    determine the parameter."""
+    best = np.asarray(best, dtype=float)
+    width = space.upper - space.lower
+    warnings = []
+    for i, name in enumerate(names):
+        for side, bound in (("lower", space.lower[i]), ("upper", space.upper[i])):
+            if abs(best[i] - bound) <= AT_BOUND * width[i]:
+                warnings.append(f"best.{name}={best[i]:.6g} is at its {side} bound "
+                                f"{bound:.6g}: the data may not determine it, or the answer "
+                                "lies outside the bounds (bounds.*)")
+    return warnings
+
+
 def _identification_result(config, label, trajectory, best, cost, info):
     model = str(config["model"])
     names = problem.PARAM_NAMES_18 if model == "18" else problem.PARAM_NAMES_5
@@ -70,6 +90,8 @@ def _identification_result(config, label, trajectory, best, cost, info):
     result = {"data": label, "method": config["method"], "model": model,
               "best": problem.named(best, names, cost), "population": population,
               "n_evals": info["n_evals"], "cost_used": config["cost"]}
+    result["warnings"] = bound_warnings(best, problem.search_space(
+        trajectory, config["bounds"], model=model), names)
     if truth is not None:
         errors = problem.relative_errors(best, truth)
         result["relative_errors"] = dict(zip(names, errors.tolist()))

@@ -113,7 +113,12 @@ def cost_from_config(trajectory, cost_cfg):
     list ``cost_cfg.frames``) on ``trajectory``."""
     kind = cost_cfg.get("kind", "small")
     if kind == "frames":
-        frames = np.asarray(cost_cfg["frames"], dtype=np.int64)
+        given = cost_cfg.get("frames")
+        check(isinstance(given, list) and all(isinstance(t, int) and not isinstance(t, bool)
+                                              for t in given),
+              f"cost.frames={given!r}: cost.kind=frames needs a list of frame indices "
+              "(+cost.frames=[t, ...])")
+        frames = np.asarray(given, dtype=np.int64)
         check(frames.size > 0, "cost.frames: expected at least one frame index")
         if frames.min() < 0 or frames.max() > trajectory.n_frames - 2:
             raise InputError(

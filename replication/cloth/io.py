@@ -74,12 +74,59 @@ def _finite(path, key, array):
 
 
 def _real(path, key, array):
-    if array.dtype == object or not (np.issubdtype(array.dtype, np.number)
-                                     or array.dtype == np.bool_):
+    if array.dtype == np.bool_:
+        _fail(path, key, "dtype bool", "real numbers (not true/false)")
+    if array.dtype == object or not np.issubdtype(array.dtype, np.number):
         _fail(path, key, f"dtype {array.dtype}", "a real numeric array")
     if np.iscomplexobj(array):
         _fail(path, key, f"dtype {array.dtype}", "real numbers")
     return array.astype(float)
+
+
+def load_npz(path, expected):
+    """Every array of the ``.npz`` archive ``path``; one-line :class:`InputError` for a file
+    that is not one (a ``.npy`` file, a truncated archive, pickled objects, not UTF-8...)."""
+    reason = None
+    try:
+        loaded = np.load(path, allow_pickle=False)
+        if not isinstance(loaded, np.lib.npyio.NpzFile):
+            reason = f"a single {type(loaded).__name__} (.npy data), not an .npz archive"
+        else:
+            with loaded as archive:
+                return {key: archive[key] for key in archive.files}
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError, KeyError,
+            UnicodeDecodeError) as error:
+        reason = str(error).splitlines()[0] if str(error) else type(error).__name__
+    raise InputError(f"{path}: cannot be read as .npz ({reason}); expected {expected}")
+
+
+# coordinates beyond this (in the data's length unit) overflow the model's arithmetic
+MAX_COORDINATE = 1e9
+
+
+def _check_motion(path, positions, pinned):
+    """Refuse coincident neighbours, a cloth that never moves and pinned particles that
+    move (more than half a structural spring)."""
+    first = positions[0]
+    h = np.linalg.norm(first[:, 1:] - first[:, :-1], axis=-1)
+    if not np.all(h > 0):
+        i, j = np.argwhere(~(h > 0))[0]
+        _fail(path, "positions", f"particles ({i}, {j}) and ({i}, {j + 1}) at the same place "
+              "in frame 0", "a mesh whose neighbouring particles are apart")
+    h = float(np.mean(h))
+    moved = float(np.max(np.abs(positions - first)))
+    if moved <= 1e-12 * h:
+        _fail(path, "positions", f"the same positions in all {positions.shape[0]} frames "
+              "(no motion)", "a moving cloth (identification needs motion)")
+    if len(pinned):
+        track = positions[:, pinned[:, 0], pinned[:, 1]]
+        drift = np.linalg.norm(track - track[:1], axis=-1).max(axis=0)
+        worst = int(np.argmax(drift))
+        if drift[worst] > 0.5 * h:
+            i, j = pinned[worst]
+            _fail(path, "pinned", f"particle ({i}, {j}) moves by "
+                  f"{drift[worst] / h:.3g} h", "pinned particles that stay in place "
+                  "(within 0.5 h)")
 
 
 def read_trajectory(path):
@@ -96,13 +143,7 @@ def read_trajectory(path):
                          "(docs/data-formats.md)")
     if path.is_dir():
         raise InputError(f"{path}: is a folder; expected a trajectory .npz file")
-    try:
-        with np.load(path, allow_pickle=False) as archive:
-            raw = {key: archive[key] for key in archive.files}
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as error:
-        reason = str(error).splitlines()[0] if str(error) else type(error).__name__
-        raise InputError(f"{path}: cannot be read as .npz ({reason}); expected a trajectory "
-                         "file as in docs/data-formats.md") from None
+    raw = load_npz(path, "a trajectory file as in docs/data-formats.md")
     for key in REQUIRED:
         if key not in raw:
             _fail(path, key, "no such key (keys: " + ", ".join(sorted(raw)) + ")",
@@ -117,6 +158,10 @@ def read_trajectory(path):
     if n < 3:
         _fail(path, "positions", f"n = {n} particles per side", "n >= 3")
     _finite(path, "positions", positions)
+    largest = float(np.max(np.abs(positions)))
+    if largest > MAX_COORDINATE:
+        _fail(path, "positions", f"a coordinate of magnitude {largest:.3g}",
+              f"coordinates within +-{MAX_COORDINATE:g}")
 
     dt = _real(path, "dt", raw["dt"])
     if dt.shape != ():
@@ -148,6 +193,7 @@ def read_trajectory(path):
         _fail(path, "pinned", f"index ({row[0]}, {row[1]})",
               f"indices inside the {n}x{n} mesh (0..{n - 1})")
     pinned = pinned.astype(np.int64)
+    _check_motion(path, positions, pinned)
 
     damping = 0.0
     if "damping" in raw:

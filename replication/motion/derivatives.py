@@ -20,6 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from replication.errors import InputError
+
 
 @dataclass(frozen=True)
 class PixelDerivatives:
@@ -120,6 +122,12 @@ def sequence_derivatives(frames, *, sigma=1.5, relative_threshold=0.15, border=N
     for t in range(frames.shape[0] - 1):
         gx, gy, gt, valid = pair_derivatives(frames[t], frames[t + 1], sigma=sigma,
                                              border=border)
+        if not valid.any():
+            b = default_border(sigma) if border is None else int(border)
+            raise InputError(
+                f"frames of {frames.shape[1]} x {frames.shape[2]} pixels: no pixel inside the "
+                f"{b}-pixel border that smoothing (sigma={sigma:g}) leaves invalid; expected "
+                f"frames of at least {2 * b + 1} x {2 * b + 1} pixels")
         norm = np.hypot(gx, gy)
         keep = valid & (norm >= gradient_threshold(norm, valid, relative=relative_threshold))
         keep &= norm > 0

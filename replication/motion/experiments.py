@@ -95,12 +95,48 @@ def _check_settings(settings):
     check(settings["omega_min"] < settings["omega_max"],
           f"omega_min={settings['omega_min']}, omega_max={settings['omega_max']}: expected "
           "omega_min < omega_max")
-    check(int(settings["omega_count"]) >= 2,
-          f"omega_count={settings['omega_count']}: expected at least 2 values")
+    from replication.guard import LIMITS
+
+    count, limit = settings["omega_count"], LIMITS["max_sweep_values"]
+    check(isinstance(count, int) and not isinstance(count, bool) and 2 <= count <= limit,
+          f"method.omega_count={count!r}: expected an integer from 2 to "
+          f"limits.max_sweep_values={limit:g}")
     check(settings["sigma"] >= 0, f"sigma={settings['sigma']}: expected >= 0 pixels")
     for key in ("relative_threshold", "refine_threshold"):
         check(0 < settings[key] < 1, f"{key}={settings[key]}: expected a fraction in (0, 1)")
     check(settings["cell"] > 0, f"cell={settings['cell']}: expected > 0 pixels")
+
+
+# a refinement on fewer pixels than this is reported with a warning
+MIN_REFINE_PIXELS = 100
+
+
+def check_motion(sequence):
+    """Refuse a sequence whose frames are all identical: there is no motion to find."""
+    frames = sequence.frames
+    change = np.abs(np.diff(frames, axis=0)).reshape(frames.shape[0] - 1, -1).max(axis=1)
+    if not np.any(change > 0):
+        raise InputError(f"{sequence.source}: no motion found: all {frames.shape[0]} frames "
+                         "are identical; expected a sequence in which something turns")
+
+
+def answer_warnings(paper, refined, settings):
+    """Warnings on a rotation estimate: the best peak at the edge of the omega sweep, a
+    refinement on too few pixels, a refined omega outside the sweep."""
+    low, high = float(settings["omega_min"]), float(settings["omega_max"])
+    step = (high - low) / max(int(settings["omega_count"]) - 1, 1)
+    warnings = []
+    if min(abs(paper["omega"] - low), abs(paper["omega"] - high)) <= step / 2:
+        warnings.append(f"irc.omega={paper['omega']:.4g} is at the edge of the sweep "
+                        f"[{low:g}, {high:g}]: the rotation may lie outside it (widen "
+                        "method.omega_min/omega_max)")
+    if refined.get("pixels", 0) < MIN_REFINE_PIXELS:
+        warnings.append(f"irc_refined: refinement on {refined.get('pixels', 0)} pixel(s), "
+                        f"fewer than {MIN_REFINE_PIXELS}: the refined estimate is not reliable")
+    if not low <= refined["omega"] <= high:
+        warnings.append(f"irc_refined.omega={refined['omega']:.4g} is outside the sweep "
+                        f"[{low:g}, {high:g}]")
+    return warnings
 
 
 def _truth_of(sequence):
@@ -155,6 +191,7 @@ def single_rotation(config, out):
     sequence = _load(given or config["default_data"])
     progress(f"{sequence.source}: {sequence.frames.shape[0]} frames of "
              f"{sequence.frames.shape[1]} x {sequence.frames.shape[2]}")
+    check_motion(sequence)
     single.warm_up()
     found = single.find_rotation(sequence.frames, settings)
     paper, refined = found["paper"], found["refined"]
@@ -163,6 +200,7 @@ def single_rotation(config, out):
         "data": sequence.source,
         "irc": paper,
         "irc_refined": refined,
+        "warnings": answer_warnings(paper, refined, settings),
         "seconds": found["seconds"],
         "pixels_used": int(len(found["pixels"])),
         "region_pixels": int(np.count_nonzero(found["region"])),

@@ -8,13 +8,12 @@ by 65535, other dtypes unchanged. The writers are deterministic (same arrays, sa
 from __future__ import annotations
 
 import json
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from replication.cloth.io import write_npz_deterministic
+from replication.cloth.io import load_npz, write_npz_deterministic
 from replication.errors import InputError
 
 FRAME_SUFFIXES = (".png", ".tif", ".tiff")
@@ -65,6 +64,7 @@ def read_image(path):
             from PIL import Image
 
             with Image.open(path) as handle:
+                _check_size(path, (handle.height, handle.width))
                 if handle.mode in ("P", "PA", "LA", "1"):
                     handle = handle.convert("RGB" if handle.mode != "LA" else "L")
                 image = np.asarray(handle)
@@ -76,7 +76,7 @@ def read_image(path):
             import tifffile
 
             image = tifffile.imread(path)
-    except (OSError, ValueError) as error:
+    except (OSError, ValueError, SyntaxError) as error:
         reason = str(error).splitlines()[0] if str(error) else type(error).__name__
         raise InputError(f"{path}: cannot be read as an image ({reason}); expected a PNG "
                          "or TIFF frame") from None
@@ -89,6 +89,16 @@ def _frame_files(folder):
     labels = sorted(p for p in folder.iterdir()
                     if p.name.startswith("labels_") and p.suffix.lower() == ".png")
     return files, labels
+
+
+def _check_size(path, shape):
+    """Refuse frames of more than ``limits.max_frame_pixels`` pixels, before decoding."""
+    from replication.guard import LIMITS
+
+    limit = LIMITS["max_frame_pixels"]
+    if len(shape) >= 2 and shape[-2] * shape[-1] > limit:
+        _fail(path, "frames", f"frames of {shape[-2]} x {shape[-1]} pixels",
+              f"at most limits.max_frame_pixels={limit:.0f} pixels per frame")
 
 
 def _check_frames(path, frames):
@@ -110,6 +120,15 @@ def _check_frames(path, frames):
                   "an image with some contrast (the method needs image gradients)")
 
 
+def _read_truth_file(path):
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as error:
+        _fail(path, "truth", f"bytes that are not UTF-8 (at byte {error.start})",
+              "a UTF-8 JSON file")
+    return _parse_truth(path, text)
+
+
 def _parse_truth(path, text):
     try:
         truth = json.loads(text)
@@ -123,6 +142,11 @@ def _parse_truth(path, text):
         if missing:
             _fail(path, "truth", f"an object without {', '.join(missing)}",
                   "objects with xi, eta and omega")
+        for key in ("xi", "eta", "omega"):
+            value = item[key]
+            if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                    or not np.isfinite(value):
+                _fail(path, f"truth {key}", f"{json.dumps(value)}", "a finite number")
     return truth
 
 
@@ -143,26 +167,29 @@ def _read_folder(folder):
 
         stack = []
         for p in label_files:
-            with Image.open(p) as handle:
-                stack.append(np.asarray(handle).astype(np.int64))
+            try:
+                with Image.open(p) as handle:
+                    _check_size(p, (handle.height, handle.width))
+                    stack.append(np.asarray(handle).astype(np.int64))
+            except (OSError, ValueError, SyntaxError) as error:
+                reason = str(error).splitlines()[0] if str(error) else type(error).__name__
+                raise InputError(f"{p}: cannot be read as a label image ({reason}); expected "
+                                 "an 8-bit PNG") from None
+            if stack[-1].shape != frames.shape[1:]:
+                _fail(p, "shape", f"{stack[-1].shape}", f"the frames' shape {frames.shape[1:]}")
         labels = np.stack(stack)
     truth = None
     if (folder / "truth.json").exists():
-        truth = _parse_truth(folder / "truth.json", (folder / "truth.json").read_text())
+        truth = _read_truth_file(folder / "truth.json")
     return frames, labels, truth
 
 
 def _read_npz(path):
-    try:
-        with np.load(path, allow_pickle=False) as archive:
-            raw = {key: archive[key] for key in archive.files}
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as error:
-        reason = str(error).splitlines()[0] if str(error) else type(error).__name__
-        raise InputError(f"{path}: cannot be read as .npz ({reason}); expected an image "
-                         "sequence with a 'frames' key") from None
+    raw = load_npz(path, "an image sequence with a 'frames' key")
     if "frames" not in raw:
         _fail(path, "frames", "no such key (keys: " + ", ".join(sorted(raw)) + ")",
               "a 'frames' array of shape (T, H, W)")
+    _check_size(path, raw["frames"].shape)
     frames = _to_float(path, "frames", raw["frames"])
     labels = None
     if "labels" in raw:

@@ -84,6 +84,7 @@ def settings_from(method):
             raise InputError(f"method.{group}: unknown setting(s) {bad}; expected some of "
                              + ", ".join(defaults))
         settings[group] = {**defaults, **given}
+    _check_ranges(settings)
     try:
         disc_ea.check_settings(settings["ea"])
     except ValueError as error:
@@ -93,6 +94,32 @@ def settings_from(method):
     except ValueError as error:
         raise InputError(f"method.assign.{error}") from None
     return settings
+
+
+# settings that count something: integers >= 1
+COUNTS = {"snake": ("n_sectors", "iterations", "rounds", "rho_max"),
+          "accumulation": ("omega_count", "max_pixels")}
+
+
+def _check_ranges(settings):
+    """Numbers of the snake, accumulation and merge groups are >= 0, counts >= 1, the
+    restricted sweep at most ``limits.max_sweep_values`` values."""
+    from replication.guard import LIMITS
+
+    for group in ("snake", "accumulation", "merge"):
+        for key, value in settings[group].items():
+            if isinstance(value, bool) or key == "steps":
+                continue
+            where = f"method.{group}.{key}={value!r}"
+            if key in COUNTS.get(group, ()):
+                if not (isinstance(value, int) and value >= 1):
+                    raise InputError(f"{where}: expected an integer >= 1")
+            elif isinstance(value, (int, float)) and not (math.isfinite(value) and value >= 0):
+                raise InputError(f"{where}: expected a finite number >= 0")
+    count, limit = settings["accumulation"]["omega_count"], LIMITS["max_sweep_values"]
+    if count > limit:
+        raise InputError(f"method.accumulation.omega_count={count}: expected at most "
+                         f"limits.max_sweep_values={limit:g}")
 
 
 def dense_to_pixels(data):

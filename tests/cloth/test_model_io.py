@@ -16,8 +16,11 @@ H = 1.5 / 16
 
 def _valid_arrays(n_frames=5, n=17):
     rng = np.random.default_rng(0)
+    positions = rng.normal(size=(n_frames, n, n, 3))
+    positions[:, 0, 0] = positions[0, 0, 0]  # pinned particles stay in place
+    positions[:, 0, n - 1] = positions[0, 0, n - 1]
     return {
-        "positions": rng.normal(size=(n_frames, n, n, 3)),
+        "positions": positions,
         "dt": np.float64(0.002),
         "mass": np.float64(0.001),
         "gravity": np.array([0.0, 0.0, -9.81]),

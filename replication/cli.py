@@ -262,6 +262,10 @@ def _hydra_main(cfg: DictConfig):
         _error(f"{error.filename}: file not found")
     except OSError as error:
         _error(_os_message(error))
+    except SystemError as error:  # Ctrl-C inside numba's dispatcher
+        if isinstance(error.__cause__ or error.__context__, KeyboardInterrupt):
+            raise KeyboardInterrupt from None
+        raise
 
 
 def _hydra_message(error):

@@ -20,6 +20,7 @@ import numba
 import numpy as np
 from scipy import ndimage
 
+from replication.interrupts import deferred
 from replication.motion.derivatives import (default_border, gradient_threshold, smooth,
                                             spatial_gradient)
 
@@ -219,8 +220,17 @@ def sweep(pixels, omegas, grid):
     if np.any(omegas == 0):
         raise ValueError("omegas: contains 0; the paper's sweep excludes omega = 0")
     template = np.zeros(1, dtype=_counter_dtype(len(pixels)))
-    peak, where, votes = _sweep(*_as_arrays(pixels), omegas, grid.x0, grid.y0, grid.cell,
-                                grid.ny, grid.nx, template)
+    arrays = _as_arrays(pixels)
+    # a few omegas per compiled call: Ctrl-C (raised only between calls) ends a long sweep
+    # within a few accumulations, and no interrupt lands inside the parallel region
+    chunk = numba.get_num_threads()
+    parts = []
+    for start in range(0, omegas.size, chunk):
+        with deferred():
+            parts.append(_sweep(*arrays, omegas[start:start + chunk], grid.x0, grid.y0,
+                                grid.cell, grid.ny, grid.nx, template))
+    peak, where, votes = (np.concatenate([part[k] for part in parts]) if parts
+                          else np.zeros(0, dtype=np.int64) for k in range(3))
     j, i = np.divmod(where, grid.nx)
     xi, eta = grid.centre(j, i)
     return {"omega": omegas, "xi": np.asarray(xi, dtype=float),

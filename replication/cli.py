@@ -122,22 +122,25 @@ class Staging:
             text = text.replace(json.dumps(staged)[1:-1], json.dumps(real)[1:-1])
         path.write_text(text)
 
-    def commit(self):
-        """Move every staged file to its real place."""
+    def commit(self, result_name="result.json"):
+        """Move every staged file to its real place, ``out/result.json`` last."""
+        moves = []
         for staged, real in self.targets.items():
             for item in sorted(staged.rglob("*")):
-                if item.is_dir():
-                    continue
-                if item.suffix == ".json":
-                    self._fix_json(item)
-                target = real / item.relative_to(staged)
-                target.parent.mkdir(parents=True, exist_ok=True)
-                try:
-                    os.replace(item, target)
-                except OSError as error:
-                    if error.errno != errno.EXDEV:
-                        raise
-                    shutil.move(str(item), str(target))
+                if not item.is_dir():
+                    moves.append((item, real / item.relative_to(staged)))
+        last = self.root / "out" / result_name
+        moves.sort(key=lambda move: move[0] == last)
+        for item, target in moves:
+            if item.suffix == ".json" and item != last:
+                self._fix_json(item)
+            target.parent.mkdir(parents=True, exist_ok=True)
+            try:
+                os.replace(item, target)
+            except OSError as error:
+                if error.errno != errno.EXDEV:
+                    raise
+                shutil.move(str(item), str(target))
         self.discard()
 
     def discard(self):
@@ -220,8 +223,8 @@ def run_experiment(config, out, defaults=None):
         }
         payload.update(result)
         payload["warnings"] = warnings
+        write_json_atomic(staging.root / "out" / "result.json", payload)
         staging.commit()
-        write_json_atomic(Path(out) / "result.json", payload)
     finally:
         staging.discard()
     print(f"wrote {Path(out) / 'result.json'}", file=sys.stderr)
@@ -262,9 +265,12 @@ def _hydra_main(cfg: DictConfig):
         _error(f"{error.filename}: file not found")
     except OSError as error:
         _error(_os_message(error))
-    except SystemError as error:  # Ctrl-C inside numba's dispatcher
-        if isinstance(error.__cause__ or error.__context__, KeyboardInterrupt):
+    except SystemError as error:  # Ctrl-C or the time limit inside numba's dispatcher
+        cause = error.__cause__ or error.__context__
+        if isinstance(cause, KeyboardInterrupt):
             raise KeyboardInterrupt from None
+        if isinstance(cause, InputError):
+            _error(cause)
         raise
 
 

@@ -48,11 +48,20 @@ def set_limits(limits):
             continue
         check(isinstance(value, (int, float)) and not isinstance(value, bool)
               and math.isfinite(value) and value > 0,
-              f"limits.{key}={value!r}: expected a number > 0")
+              f"limits.{key}={show(value)}: expected a number > 0")
         merged[key] = value
     LIMITS.clear()
     LIMITS.update(merged)
     return merged
+
+
+def show(value):
+    """A config value as the command line spells it: null, true, false, 'text', 1.5."""
+    if value is None:
+        return "null"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return repr(value)
 
 
 def _kind(value):
@@ -106,11 +115,11 @@ def check_types(defaults, config, where=""):
             check_types(model, value, f"{where}[{index}]")
         return
     if not _fits(defaults, config):
-        raise InputError(f"{where}={config!r}: expected {_kind(defaults)} (as in the "
+        raise InputError(f"{where}={show(config)}: expected {_kind(defaults)} (as in the "
                          f"experiment's config, {defaults!r})")
     if isinstance(config, float) and not math.isfinite(config) \
             and not (isinstance(defaults, float) and not math.isfinite(defaults)):
-        raise InputError(f"{where}={config!r}: expected a finite number")
+        raise InputError(f"{where}={show(config)}: expected a finite number")
 
 
 def inside(path, folder):
@@ -210,10 +219,10 @@ def check_config(config, defaults):
     set_limits(config.get("limits"))
     seed = config.get("seed")
     check(isinstance(seed, int) and not isinstance(seed, bool) and seed >= 0,
-          f"seed={seed!r}: expected an integer >= 0")
+          f"seed={show(seed)}: expected an integer >= 0")
     for key in BOOLEAN_KEYS:
         value = config.get(key, False)
-        check(isinstance(value, bool), f"{key}={value!r}: expected true or false")
+        check(isinstance(value, bool), f"{key}={show(value)}: expected true or false")
     if defaults is not None:
         check_types({k: v for k, v in defaults.items() if k not in ("out", "data")},
                     {k: v for k, v in config.items() if k not in ("out", "data")})

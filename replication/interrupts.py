@@ -1,9 +1,9 @@
-"""Ctrl-C around compiled code.
+"""Signals around compiled code.
 
-A ``KeyboardInterrupt`` raised while numba's dispatcher is in Python (unpickling, type
-dispatch) surfaces as ``SystemError: ... returned a result with an exception set`` or
-worse. :func:`deferred` holds SIGINT during a compiled call and raises the interrupt
-right after it.
+A ``KeyboardInterrupt`` (Ctrl-C) or the time limit's exception raised while numba's
+dispatcher is in Python (unpickling, type dispatch) surfaces as ``SystemError: ...
+returned a result with an exception set``, or worse. :func:`deferred` holds SIGINT and
+SIGALRM during a compiled call and delivers them right after it.
 """
 
 from __future__ import annotations
@@ -12,11 +12,14 @@ import signal
 import threading
 from contextlib import contextmanager
 
+HELD = (signal.SIGINT, signal.SIGALRM)
+
 
 @contextmanager
 def deferred():
-    """Hold Ctrl-C (SIGINT) during the block; raise ``KeyboardInterrupt`` after it when
-    one arrived. Outside the main thread the block runs unchanged."""
+    """Hold SIGINT and SIGALRM during the block; deliver them to their previous handlers
+    after it (SIGINT's default raises ``KeyboardInterrupt``). Outside the main thread the
+    block runs unchanged."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -25,10 +28,15 @@ def deferred():
     def hold(signum, frame):
         caught.append(signum)
 
-    previous = signal.signal(signal.SIGINT, hold)
+    previous = {signum: signal.signal(signum, hold) for signum in HELD}
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
-    if caught:
-        raise KeyboardInterrupt
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+    for signum in dict.fromkeys(caught):
+        handler = previous[signum]
+        if callable(handler):
+            handler(signum, None)
+        elif signum == signal.SIGINT:
+            raise KeyboardInterrupt

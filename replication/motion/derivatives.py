@@ -97,6 +97,10 @@ def gradient_threshold(gradient_norm, valid, *, relative):
     Relative to the image's own strong gradients, so the same setting works for 8-bit,
     16-bit and float data of any scale.
     """
+    if not valid.any():
+        height, width = gradient_norm.shape
+        raise InputError(f"frames of {height} x {width} pixels: no pixel inside the border "
+                         "that smoothing leaves invalid; expected larger frames")
     reference = np.percentile(gradient_norm[valid], 99.0)
     return relative * reference
 

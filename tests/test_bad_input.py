@@ -104,6 +104,8 @@ def _motion_files(folder):
                                               "omega": 0.01}]})
     sequence("truth_null", truth={"objects": [{"label": 1, "xi": None, "eta": 1,
                                                "omega": 0.01}]})
+    sequence("truth_no_label", labels=np.zeros(frames.shape, np.uint8),
+             truth={"objects": [{"xi": 1.0, "eta": 1.0, "omega": 0.01}]})
     broken = sequence("png_broken")
     (broken / "frame_001.png").write_bytes(b"\x89PNG\r\n\x1a\n broken")
     os.mkfifo(folder / "fifo")
@@ -189,12 +191,14 @@ MOTION_READERS = ["motion_single", "segment_multi"]
 MOTION_MATRIX = ([(e, f) for e in MOTION_READERS for f in MOTION_CASES]
                  + [(e, f) for e in ("bench_motion", "bench_segment")
                     for f in ("frames_8x8.npz", "huge_4000.npz", "truth_abc")]
-                 + [("motion_single", "identical.npz")])
+                 + [("motion_single", "identical.npz"),
+                    ("segment_multi", "truth_no_label")])
 
 
 @pytest.mark.parametrize("experiment, filename", MOTION_MATRIX)
 def test_bad_sequence_is_refused(bad, tmp_path, capsys, experiment, filename):
-    message = MOTION_CASES.get(filename, "no motion found")
+    message = MOTION_CASES.get(filename, {"identical.npz": "no motion found"}.get(
+        filename, "has no 'label'"))
     status, err = replicate(capsys, *redirected(experiment, tmp_path / "work"),
                             f"data.path={bad / filename}", "method.omega_count=20"
                             if experiment == "motion_single" else "seed=0")

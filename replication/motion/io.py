@@ -142,6 +142,9 @@ def _parse_truth(path, text):
         if missing:
             _fail(path, "truth", f"an object without {', '.join(missing)}",
                   "objects with xi, eta and omega")
+        label = item.get("label", 0)
+        if isinstance(label, bool) or not isinstance(label, int):
+            _fail(path, "truth label", f"{json.dumps(label)}", "an integer label value")
         for key in ("xi", "eta", "omega"):
             value = item[key]
             if isinstance(value, bool) or not isinstance(value, (int, float)) \

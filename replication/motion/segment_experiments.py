@@ -182,7 +182,7 @@ def segment_sequence(config, out):
     """Paper 2.3 on one sequence: ``objects`` (one mask file each in ``out``), Figs. 5-7.
 
     ``data.path`` null means the configured ``default_data`` and the figures go to
-    ``figures/``; for any other sequence they go to ``out/figures``.
+    ``figure_dir`` (``figures/``); for any other sequence they go to ``out/figures``.
     """
     from replication.motion import segmentation
 
@@ -190,6 +190,12 @@ def segment_sequence(config, out):
     sequence, default = _load(config)
     progress(f"{sequence.source}: {sequence.frames.shape[0]} frames of "
              f"{sequence.frames.shape[1]} x {sequence.frames.shape[2]}")
+    if sequence.truth and sequence.labels is not None:
+        unlabelled = [i for i, item in enumerate(sequence.truth.get("objects", []))
+                      if "label" not in item]
+        check(not unlabelled, f"{sequence.source}: truth object {unlabelled[:1]} has no "
+                              "'label'; expected the label value of each object (scoring "
+                              "against the labels needs it)")
     start = time.perf_counter()
     found = segmentation.segment(sequence.frames, settings, int(config["seed"]))
     seconds = time.perf_counter() - start
@@ -203,7 +209,8 @@ def segment_sequence(config, out):
         result["truth"] = sequence.truth["objects"]
         result["score"] = score_objects(found["objects"], sequence.labels[0], sequence.truth)
     if config.get("figures", True):
-        figure_dir = FIGURE_DIR if default else Path(out) / "figures"
+        figure_dir = Path(config.get("figure_dir") or FIGURE_DIR) if default \
+            else Path(out) / "figures"
         result["figures"] = _draw_figures(sequence, found, figure_dir)
     return result
 

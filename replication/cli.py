@@ -250,8 +250,28 @@ def _interrupted():
     os._exit(130)
 
 
+def _drop_empty_job_folder():
+    """In a sweep, remove the job folder Hydra made for a refused job when it is empty."""
+    from hydra.types import RunMode
+
+    try:
+        hydra_config = HydraConfig.get()
+        if hydra_config.mode == RunMode.MULTIRUN:
+            Path(hydra_config.runtime.output_dir).rmdir()
+    except (OSError, ValueError):
+        pass
+
+
 @hydra.main(config_path=CONFIG_DIR, config_name="config", version_base="1.3")
 def _hydra_main(cfg: DictConfig):
+    try:
+        _run_task(cfg)
+    except BaseException:
+        _drop_empty_job_folder()
+        raise
+
+
+def _run_task(cfg):
     try:
         config = OmegaConf.to_container(cfg, resolve=True, throw_on_missing=True)
         out = config["out"]
@@ -321,6 +341,48 @@ def precheck(overrides):
     return out
 
 
+def compose_first_job(args):
+    """Compose the jobs of a sweep that differ from the first in one swept value (each
+    value of each swept key once) and check them (:func:`check_config`), so that Hydra's
+    refusals and bad values come as one :class:`InputError` line before any job runs or
+    Hydra writes anything."""
+    from hydra import compose, initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    GlobalHydra.instance().clear()
+    try:
+        overrides, swept = [], []
+        for override in OverridesParser.create().parse_overrides(list(args)):
+            if override.key_or_group.startswith("hydra"):
+                continue
+            if override.is_sweep_override():
+                values = list(override.sweep_string_iterator())
+                key = override.get_key_element()
+                overrides.append(f"{key}={values[0]}" if values else override.input_line)
+                swept.extend((len(overrides) - 1, f"{key}={value}") for value in values[1:])
+            else:
+                overrides.append(override.input_line)
+        jobs = [overrides] + [overrides[:i] + [line] + overrides[i + 1:] for i, line in swept]
+        with initialize_config_dir(config_dir=CONFIG_DIR, version_base="1.3"):
+            defaults = None
+            for job in jobs:
+                config = OmegaConf.to_container(compose(config_name="config", overrides=job),
+                                                resolve=True)
+                if defaults is None and config.get("name") in available_experiments():
+                    defaults = OmegaConf.to_container(compose(
+                        config_name="config", overrides=[f"experiment={config['name']}"]),
+                        resolve=True)
+                if config.get("runner"):
+                    check_config(config, defaults)
+    except (HydraException, OmegaConfBaseException, ValueError) as error:
+        raise InputError(_hydra_message(error)) from None
+    finally:
+        GlobalHydra.instance().clear()
+
+
 def _missing_chain(path):
     """The folders of ``path`` that do not exist yet, deepest first."""
     chain, path = [], Path(path).absolute()
@@ -349,7 +411,15 @@ def main():
     previous = signal.signal(signal.SIGTERM, terminate)
     chain = []
     try:
-        if not any(arg.startswith("-") for arg in args):
+        flags = [arg for arg in args if arg.startswith("-")]
+        if flags and set(flags) <= {"-m", "--multirun"}:
+            # a sweep: Hydra's refusals (unknown key or experiment) as one line; each job
+            # checks its own config
+            try:
+                compose_first_job([arg for arg in args if arg not in flags])
+            except InputError as error:
+                _error(error)
+        if not flags:
             # a single run: refuse bad config before Hydra creates the run folder
             try:
                 out = precheck(args)

@@ -270,6 +270,18 @@ def test_out_empty_or_inside_results_is_refused(tmp_path, capsys, monkeypatch, o
     assert sorted(os.listdir(ROOT / "results")) == before
 
 
+@pytest.mark.parametrize("args, message", [
+    (["experiment=fig08_mesh", "foo=1,2"], "Could not override 'foo'"),
+    (["experiment=nope", "seed=0,1"], "experiment=nope: unknown experiment"),
+    (["experiment=fig08_mesh", "seed=0,1", "zoom=abc"], "zoom='abc': expected an integer"),
+    (["experiment=fig08_mesh", "seed=0,abc"], "seed='abc': expected an integer >= 0"),
+])
+def test_sweep_refusals_are_one_line(tmp_path, capsys, monkeypatch, args, message):
+    monkeypatch.chdir(tmp_path)
+    status, err = replicate(capsys, "-m", *args, f"figure_dir={tmp_path / 'fig'}")
+    assert_refused(status, err, message, tmp_path)
+
+
 def test_no_experiment_is_refused(tmp_path, capsys):
     status, err = replicate(capsys, f"out={tmp_path / 'work'}")
     assert_refused(status, err, "no experiment chosen", tmp_path)

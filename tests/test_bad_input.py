@@ -67,7 +67,7 @@ CLOTH_CASES = {
     "zero.npz": "at the same place",
     "frozen.npz": "no motion",
     "dt_bool.npz": "'dt': found dtype bool",
-    "pinned_moves.npz": "stay in place",
+    "pinned_moves.npz": "pinned particle (0, 0) moving by",
     "nan.npz": "NaN or inf",
     "no_dt.npz": "'dt': found no such key",
     "fifo.npz": "not a regular file",

@@ -124,9 +124,9 @@ def _check_motion(path, positions, pinned):
         worst = int(np.argmax(drift))
         if drift[worst] > 0.5 * h:
             i, j = pinned[worst]
-            _fail(path, "pinned", f"particle ({i}, {j}) moves by "
-                  f"{drift[worst] / h:.3g} h", "pinned particles that stay in place "
-                  "(within 0.5 h)")
+            _fail(path, "positions", f"pinned particle ({i}, {j}) moving by "
+                  f"{drift[worst] / h:.3g} h", "a cloth whose pinned particles stay in "
+                  "place (within 0.5 h)")
 
 
 def read_trajectory(path):

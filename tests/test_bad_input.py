@@ -442,3 +442,26 @@ def test_ctrl_c_during_the_sweep_exits_130_and_writes_nothing(tmp_path):
     assert process.returncode == 130, err
     assert "Traceback" not in err and "error: interrupted" in err
     assert sorted(os.listdir(tmp_path)) == ["seq.npz"]
+
+
+def test_interrupt_after_a_figure_leaves_no_figure_and_no_result(tmp_path, monkeypatch):
+    """Ctrl-C in fig11_reconstruction after its PNG is drawn, before the GIF: the staged PNG
+    is removed with the rest (run_experiment itself; ``main`` would then exit 130)."""
+    from hydra import compose, initialize_config_dir
+    from omegaconf import OmegaConf
+
+    from replication.figures import fig11_reconstruction as figure
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(figure, "animate", interrupted)
+    work = tmp_path / "work"
+    with initialize_config_dir(config_dir=cli.CONFIG_DIR, version_base="1.3"):
+        cfg = compose(config_name="config", overrides=[
+            "experiment=fig11_reconstruction", f"out={work / 'out'}",
+            f"figure_dir={work / 'fig'}", "gif_stride=250", "frames=[0,100]"])
+        config = OmegaConf.to_container(cfg, resolve=True)
+        with pytest.raises(KeyboardInterrupt):
+            cli.run_experiment(config, config["out"])
+    assert sorted(os.listdir(tmp_path)) == []

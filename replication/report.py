@@ -54,8 +54,9 @@ def _call_section(spec, result):
 
 
 def command_line(result):
-    """The command that made a result (experiment name; overrides are in its config)."""
-    return f"replicate experiment={result['experiment']}"
+    """The command that made a result (experiment name; overrides are in its config;
+    ``force=true`` lets it write into ``results/``)."""
+    return f"replicate experiment={result['experiment']} force=true"
 
 
 def fmt(value, digits=4):
@@ -76,7 +77,7 @@ def build_report(results_dir):
         heading = f"## {block['title']}\n"
         if result is None:
             missing.append(name)
-            sections.append(f"{heading}\nNot run yet: `replicate experiment={name}`.\n")
+            sections.append(f"{heading}\nNot run yet: `replicate experiment={name} force=true`.\n")
             continue
         try:
             section = _call_section(block["section"], result)

@@ -400,7 +400,7 @@ def test_replicate_all_treats_an_unreadable_result_as_missing(tmp_path, capsys, 
     stale = regenerate.stale_experiments(entries, tmp_path, provenance,
                                          {"fig08_mesh": "k"}, {})
     assert stale == {"fig08_mesh"}
-    assert "Not run yet: `replicate experiment=fig08_mesh`" in build_report(tmp_path)
+    assert "Not run yet: `replicate experiment=fig08_mesh force=true`" in build_report(tmp_path)
     (tmp_path / regenerate.CACHE_FILE).write_bytes(
         content if isinstance(content, bytes) else content.encode())
     assert regenerate._read_json_object(tmp_path / regenerate.CACHE_FILE) == {}

@@ -205,6 +205,28 @@ def test_bad_sequence_is_refused(bad, tmp_path, capsys, experiment, filename):
     assert_refused(status, err, message, tmp_path)
 
 
+MANIFEST_CASES = {
+    "truncated": ('{"sequences": ', "cannot be read as JSON"),
+    "list": ("[]", "found no 'sequences' object"),
+    "not_utf8": (b'{"sequences": {"\xff": 1}}', "cannot be read as JSON"),
+    "no_path": ('{"sequences": {"a": {"role": "study"}}}', "sequences.a: found"),
+}
+
+
+@pytest.mark.parametrize("experiment", ["motion_accuracy", "segment_study"])
+@pytest.mark.parametrize("case", sorted(MANIFEST_CASES))
+def test_bad_manifest_is_refused(tmp_path, capsys, experiment, case):
+    content, message = MANIFEST_CASES[case]
+    folder = tmp_path / "sequences"
+    folder.mkdir()
+    (folder / "manifest.json").write_bytes(content if isinstance(content, bytes)
+                                           else content.encode())
+    status, err = replicate(capsys, *redirected(experiment, tmp_path / "work"),
+                            f"sequences_dir={folder}")
+    assert_refused(status, err, message, tmp_path / "work")
+    assert sorted(os.listdir(tmp_path)) == ["sequences"]
+
+
 CONFIG_CASES = [
     ("fig08_mesh", ["seed=abc"], "seed='abc': expected an integer >= 0"),
     ("fig08_mesh", ["seed=-1"], "seed=-1: expected an integer >= 0"),

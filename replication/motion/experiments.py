@@ -15,7 +15,8 @@ import numpy as np
 
 from replication.errors import InputError, check
 from replication.motion import baselines, single
-from replication.motion.io import read_sequence, write_sequence_folder, write_sequence_npz
+from replication.motion.io import (read_manifest_sequences, read_sequence,
+                                   write_sequence_folder, write_sequence_npz)
 from replication.motion.synth import make_sequence
 from replication.progress import progress
 from replication.provenance import file_sha256
@@ -290,10 +291,7 @@ def _one_case(name, noise, frames, truth, labels, methods, chosen, settings, con
 def _accuracy_sequences(config):
     data_dir = Path(config["sequences_dir"])
     manifest_path = data_dir / "manifest.json"
-    if not manifest_path.exists():
-        raise InputError(f"{manifest_path}: no such file; expected the manifest written by "
-                         "`replicate experiment=motion_data`")
-    sequences = json.loads(manifest_path.read_text())["sequences"]
+    sequences = read_manifest_sequences(manifest_path, "motion_data")
     chosen = {name: item for name, item in sequences.items() if item["role"] == "accuracy"}
     limit = config.get("max_sequences")
     if limit is not None:

@@ -240,6 +240,30 @@ def read_sequence(path):
     return Sequence(frames=frames, labels=labels, truth=truth, source=str(path))
 
 
+def read_manifest_sequences(path, maker):
+    """The ``sequences`` of a data folder's ``manifest.json`` (written by ``replicate
+    experiment=MAKER``): ``{name: {"path": str, "role": str, ...}}``, checked."""
+    path = Path(path)
+    expected = f"the manifest written by `replicate experiment={maker}`"
+    if not path.is_file():
+        raise InputError(f"{path}: no such file; expected {expected}")
+    try:
+        manifest = json.loads(path.read_bytes().decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        reason = str(error).splitlines()[0]
+        raise InputError(f"{path}: cannot be read as JSON ({reason}); expected {expected}") \
+            from None
+    sequences = manifest.get("sequences") if isinstance(manifest, dict) else None
+    if not isinstance(sequences, dict):
+        _fail(path, "sequences", "no 'sequences' object", expected)
+    for name, item in sequences.items():
+        if not (isinstance(item, dict) and isinstance(item.get("path"), str)
+                and isinstance(item.get("role"), str)):
+            _fail(path, f"sequences.{name}", json.dumps(item)[:80],
+                  "an object with 'path' and 'role' strings")
+    return sequences
+
+
 def write_sequence_npz(path, frames, *, labels=None, truth=None):
     """Write a sequence as one deterministic ``.npz`` (float32 frames, uint8 labels)."""
     arrays = {"frames": np.asarray(frames, dtype=np.float32)}

@@ -7,14 +7,14 @@ setting and input before writing anything, and returns the experiment's result k
 from __future__ import annotations
 
 import copy
-import json
 import time
 from pathlib import Path
 
 import numpy as np
 
-from replication.errors import InputError, check
-from replication.motion.io import read_sequence, write_sequence_folder, write_sequence_npz
+from replication.errors import check
+from replication.motion.io import (read_manifest_sequences, read_sequence,
+                                   write_sequence_folder, write_sequence_npz)
 from replication.motion.multi_synth import check_object, make_multi_sequence
 from replication.progress import progress
 from replication.provenance import file_sha256
@@ -220,10 +220,7 @@ METHODS = ("pipeline", "faithful", "refined", "nichega", "flow")
 
 def _study_sequences(config):
     manifest_path = Path(config["sequences_dir"]) / "manifest.json"
-    if not manifest_path.exists():
-        raise InputError(f"{manifest_path}: no such file; expected the manifest written by "
-                         "`replicate experiment=motion_multi_data`")
-    sequences = json.loads(manifest_path.read_text())["sequences"]
+    sequences = read_manifest_sequences(manifest_path, "motion_multi_data")
     chosen = {name: item for name, item in sequences.items()
               if item["role"] in ("study", "static", "heldout")}
     limit = config.get("max_sequences")

@@ -265,7 +265,16 @@ def run_scheduled(todo, blocks, *, jobs, expected, command_for, log_dir, echo=Tr
 
 def main(argv=None):
     """Regenerate results (cached), figures and REPORT.md."""
-    parser = argparse.ArgumentParser(description=main.__doc__)
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:  # the experiments running got Ctrl-C too and wrote nothing
+        print("error: interrupted; finished experiments keep their results, the next run "
+              "redoes the others", file=sys.stderr)
+        return 130
+
+
+def _main(argv=None):
+    parser = argparse.ArgumentParser(prog="replicate-all", description=main.__doc__)
     parser.add_argument("--force", action="store_true", help="recompute every result")
     parser.add_argument("--only", default="", help="comma-separated experiment names")
     parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1,
@@ -279,7 +288,12 @@ def main(argv=None):
         return 2
 
     results = Path(args.results)
-    results.mkdir(parents=True, exist_ok=True)
+    try:
+        results.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        print(f"error: --results={results}: cannot make that folder "
+              f"({error.strerror or error})", file=sys.stderr)
+        return 2
     cache_path = results / CACHE_FILE
     cache = _read_json_object(cache_path)
     entries = experiment_entries()

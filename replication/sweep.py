@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import csv
 import math
+import os
 import re
 import sys
 from pathlib import Path
@@ -225,7 +226,19 @@ def write_plots(rows, metrics, x, folder):
 
 def main(argv=None):
     """Write the tidy CSV of a sweep folder (default: SWEEP_DIR/results.csv) and its plots."""
-    parser = argparse.ArgumentParser(description=main.__doc__)
+    try:
+        return _main(argv)
+    except OSError as error:
+        where = f"{error.filename}: " if error.filename else ""
+        print(f"error: {where}{error.strerror or error}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("error: interrupted", file=sys.stderr)
+        return 130
+
+
+def _main(argv=None):
+    parser = argparse.ArgumentParser(prog="replicate-gather", description=main.__doc__)
     parser.add_argument("sweep_dir")
     parser.add_argument("--output", default=None)
     parser.add_argument("--metric", action="append", default=None, metavar="COLUMN",
@@ -267,10 +280,16 @@ def main(argv=None):
     columns = sorted({key for row in rows for key in row},
                      key=lambda k: (k not in ("run", "experiment", "seed"), k))
     output = Path(args.output) if args.output else sweep_dir / "results.csv"
-    with open(output, "w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=columns)
-        writer.writeheader()
-        writer.writerows(rows)
+    tmp = output.with_name(f".{output.name}.tmp")
+    try:
+        with open(tmp, "w", newline="") as handle:
+            writer = csv.DictWriter(handle, fieldnames=columns)
+            writer.writeheader()
+            writer.writerows(rows)
+        os.replace(tmp, output)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
     print(f"wrote {output} ({len(rows)} runs, {len(columns)} columns)")
     if not metrics:
         print("no plots: pass --metric COLUMN or list sweep_metrics: in the experiment "

@@ -411,7 +411,25 @@ def test_gather_refuses_bad_or_mixed_results(tmp_path, capsys, content, message)
     assert sorted(p.name for p in sweep_dir.rglob("*")) == before
 
 
+def test_gather_refuses_an_unwritable_output(tmp_path, capsys):
+    sweep_dir = tmp_path / "sweep"
+    (sweep_dir / "seed=0").mkdir(parents=True)
+    (sweep_dir / "seed=0" / "result.json").write_text(json.dumps(_result("one", 1.0)))
+    status = sweep.main([str(sweep_dir), "--output", str(tmp_path / "no" / "such" / "x.csv")])
+    err = capsys.readouterr().err
+    assert status == 2 and err.startswith("error: ") and len(err.splitlines()) == 1
+    assert sorted(p.name for p in tmp_path.rglob("*")) == ["result.json", "seed=0", "sweep"]
+
+
 # ---------------------------------------------------------------- replicate-all
+def test_replicate_all_refuses_a_results_path_that_is_a_file(tmp_path, capsys):
+    target = tmp_path / "file"
+    target.write_text("x")
+    assert regenerate.main(["--results", str(target), "--only", "fig08_mesh"]) == 2
+    assert "error: --results=" in capsys.readouterr().err
+
+
+
 @pytest.mark.parametrize("content", ['{"provenance": ', "", "[]", b"\xff\xfe"])
 def test_replicate_all_treats_an_unreadable_result_as_missing(tmp_path, capsys, content):
     entries = [entry for entry in experiment_entries() if entry[1] == "fig08_mesh"]

@@ -1,0 +1,1 @@
+"""Independent test-data generators (no imports from the rest of ``replication``)."""

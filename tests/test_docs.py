@@ -64,9 +64,7 @@ def test_every_kind_in_the_schema_names_existing_experiments():
 @pytest.mark.skipif(shutil.which("git") is None or not (ROOT / ".git").exists(),
                     reason="needs git and a git checkout")
 def test_nothing_points_outside_the_repository():
-    command = ["git", "grep", "-n", "shared/", "--", "*.py", "*.md", "*.yaml", ":!tests",
-               ":!replication/discrepancy", ":!replication/cloth/identify_structured.py",
-               ":!configs/experiment/discrepancy*"]
+    command = ["git", "grep", "-n", "shared/", "--", "*.py", "*.md", "*.yaml", ":!tests"]
     done = subprocess.run(command, cwd=ROOT, capture_output=True, text=True)
     assert done.returncode == 1 and not done.stdout, (
         "references to a folder outside the repository (use docs/...):\n" + done.stdout)

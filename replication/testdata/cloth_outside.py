@@ -2,7 +2,7 @@
 
 This module is deliberately independent of the rest of the project: it imports only numpy
 and the standard library's ``json`` and ``math``. The cloth model is re-implemented from the
-text of the contract (shared/spec/cloth-model.md) and every hidden effect is written from its
+text of the contract (docs/cloth-model.md) and every hidden effect is written from its
 physical definition, so that a bug shared by the project's simulator and its effect library
 cannot hide itself in the test data.
 

@@ -31,6 +31,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from replication.errors import InputError
 from replication.guard import LIMITS, check_config, check_out, check_writable
+from replication.progress import mode_for
 from replication.provenance import run_provenance
 from replication.results import (package_versions, read_result_or_none, to_jsonable,
                                  write_json_atomic)
@@ -207,7 +208,7 @@ def run_experiment(config, out, defaults=None):
         return previous
     staging = Staging(config, out)
     try:
-        with time_limit(LIMITS["max_seconds"]):
+        with time_limit(LIMITS["max_seconds"]), mode_for(config.get("progress")):
             start = time.perf_counter()
             result = runner(staging.config, staging.root / "out")
             wall = time.perf_counter() - start
@@ -400,9 +401,29 @@ def _remove_empty(chain):
             return
 
 
+def flag_overrides(args):
+    """``args`` with the options that stand for config overrides replaced by them:
+    ``--strict`` (``strict=true``), ``--quiet`` (``progress=none``) and
+    ``--progress=MODE`` or ``--progress MODE`` (``progress=MODE``)."""
+    replaced, args = [], list(args)
+    while args:
+        arg = args.pop(0)
+        if arg == "--strict":
+            replaced.append("strict=true")
+        elif arg == "--quiet":
+            replaced.append("progress=none")
+        elif arg.startswith("--progress="):
+            replaced.append("progress=" + arg.split("=", 1)[1])
+        elif arg == "--progress" and args:
+            replaced.append("progress=" + args.pop(0))
+        else:
+            replaced.append(arg)
+    return replaced
+
+
 def main():
     """Console-script entry point."""
-    sys.argv = [("strict=true" if arg == "--strict" else arg) for arg in sys.argv]
+    sys.argv = sys.argv[:1] + flag_overrides(sys.argv[1:])
     args = sys.argv[1:]
 
     def terminate(signum, frame):

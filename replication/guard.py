@@ -4,9 +4,10 @@ Before any work, a run's resolved config is checked against its experiment's own
 (the values the experiment file gives, before any override): an override must have the
 type of the value it replaces (an integer stays an integer, a boolean a boolean, a number a
 finite number), ``seed`` is an integer >= 0, ``resume``, ``strict`` and ``force`` are
-booleans, ``out`` is a non-empty folder outside the committed ``results/`` (unless
-``force=true``), ``data.path`` is a regular file or a folder of regular files no larger
-than ``limits.max_input_mb``. Every refusal is an :class:`InputError` (one line, exit 2).
+booleans, ``progress`` is one of ``auto, bar, plain, none``, ``out`` is a non-empty folder
+outside the committed ``results/`` (unless ``force=true``), ``data.path`` is a regular
+file or a folder of regular files no larger than ``limits.max_input_mb``. Every refusal
+is an :class:`InputError` (one line, exit 2).
 
 :data:`LIMITS` holds the size and time limits of the running command (the config's
 ``limits`` block), read by the data readers.
@@ -21,6 +22,7 @@ import tempfile
 from pathlib import Path
 
 from replication.errors import InputError, check
+from replication.progress import check_mode
 from replication.provenance import PROJECT_ROOT
 
 # defaults of the config's ``limits`` block (configs/config.yaml)
@@ -223,6 +225,7 @@ def check_config(config, defaults):
     for key in BOOLEAN_KEYS:
         value = config.get(key, False)
         check(isinstance(value, bool), f"{key}={show(value)}: expected true or false")
+    check_mode(config.get("progress"))
     if defaults is not None:
         check_types({k: v for k, v in defaults.items() if k not in ("out", "data")},
                     {k: v for k, v in config.items() if k not in ("out", "data")})

@@ -23,9 +23,10 @@ CORE_MODULES = ("replication.cli", "replication.provenance", "replication.result
 
 # config keys that do not change a result: where it goes, whether to resume, how the
 # report shows it, the tests' small settings, the default metrics of sweep plots, whether
-# warnings refuse the run, whether results/ may be overwritten and the size/time limits
+# warnings refuse the run, whether results/ may be overwritten, the size/time limits and
+# how progress shows
 NOT_RESULT_KEYS = ("out", "resume", "report", "smoke", "sweep_metrics", "strict", "force",
-                   "limits")
+                   "limits", "progress")
 
 
 def config_hash(config):

@@ -32,6 +32,7 @@ from pathlib import Path
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
+from replication.progress import ENVIRONMENT, MODES, bar, mode_for
 from replication.provenance import PROJECT_ROOT, run_provenance
 from replication.report import CONFIG_DIR, build_report, experiment_entries
 from replication.results import read_result_or_none
@@ -205,17 +206,48 @@ def critical_paths(names, blocks, expected):
     return {name: path(name) for name in names}
 
 
-def run_scheduled(todo, blocks, *, jobs, expected, command_for, log_dir, echo=True):
+def run_scheduled(todo, blocks, *, jobs, expected, command_for, log_dir, echo=True,
+                  child_progress="plain"):
     """Run experiments ``todo`` (names) with ``command_for(name)`` (an argv list), up to
     ``jobs`` at once, respecting ``depends_on`` and ``exclusive`` of ``blocks[name]``;
     return ``{name: (exit status, wall seconds, cpu seconds)}``.
 
     Ready experiments start longest chain first (:func:`critical_paths` of ``expected``
-    seconds). An experiment whose dependency failed is not run (status ``None``).
+    seconds). An experiment whose dependency failed is not run (status ``None``). A bar
+    ("experiments") counts the finished ones.
+
+    Parameters
+    ----------
+    todo : list of str
+        Experiment names.
+    blocks : dict
+        ``{name: report block}`` (``depends_on``, ``exclusive``).
+    jobs : int
+        Experiments run at once.
+    expected : dict
+        ``{name: seconds}`` of the last runs, for the order.
+    command_for : callable
+        ``name -> argv list``.
+    log_dir : Path
+        Where ``NAME.log`` goes.
+    echo : bool
+        Print each experiment's output, prefixed with its name.
+    child_progress : str
+        Progress mode of the experiments (``REPLICATION_PROGRESS``): their output is a
+        pipe, so ``plain`` lines or ``none``.
     """
+    with bar(len(todo), "experiments") as shown:
+        return _run_scheduled(todo, blocks, jobs=jobs, expected=expected,
+                              command_for=command_for, log_dir=log_dir, echo=echo,
+                              environ={**os.environ, ENVIRONMENT: child_progress},
+                              shown=shown)
+
+
+def _run_scheduled(todo, blocks, *, jobs, expected, command_for, log_dir, echo, environ,
+                   shown):
     pending = list(todo)
     priority = critical_paths(todo, blocks, expected)
-    shared_env = sharing_environment(jobs)
+    shared_env = sharing_environment(jobs, environ)
     running, outcome = {}, {}
     total = len(pending)
 
@@ -229,6 +261,7 @@ def run_scheduled(todo, blocks, *, jobs, expected, command_for, log_dir, echo=Tr
                             for d in blocks[n].get("depends_on", []))]:
             pending.remove(name)
             outcome[name] = (None, 0.0, 0.0)
+            shown.update()
             print(f"[{len(outcome)}/{total}] {name}: not run (a dependency failed)", flush=True)
         ready = sorted((n for n in pending if not blocked(n)), key=lambda n: -priority[n])
         exclusive_running = any(blocks[j.name].get("exclusive") for j in running.values())
@@ -239,7 +272,7 @@ def run_scheduled(todo, blocks, *, jobs, expected, command_for, log_dir, echo=Tr
                 continue
             pending.remove(name)
             job = _Job(name, command_for(name), log_dir, echo,
-                       env=None if blocks[name].get("exclusive") else shared_env)
+                       env=environ if blocks[name].get("exclusive") else shared_env)
             running[job.process.pid] = job
             print(f"[start] {name}" + (" (alone: its timings are results)"
                                        if blocks[name].get("exclusive") else ""), flush=True)
@@ -253,6 +286,7 @@ def run_scheduled(todo, blocks, *, jobs, expected, command_for, log_dir, echo=Tr
         if job is None:
             continue
         outcome[job.name] = job.finish(status, usage)
+        shown.update()
         code, wall, cpu = outcome[job.name]
         label = f"[{len(outcome)}/{total}] {job.name}"
         if code == 0:
@@ -280,7 +314,12 @@ def _main(argv=None):
     parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1,
                         help="experiments run at once (default: the number of CPUs)")
     parser.add_argument("--quiet", action="store_true",
-                        help="do not echo the experiments' own output (it is still logged)")
+                        help="do not echo the experiments' own output (it is still logged) "
+                             "and show no progress bar")
+    parser.add_argument("--progress", choices=MODES, default="auto",
+                        help="the bar over experiments: bar (live), plain (a line every few "
+                             "seconds), none; auto: bar on a terminal, else plain. The "
+                             "experiments' logs get plain lines (none with --progress=none)")
     parser.add_argument("--results", default="results")
     args = parser.parse_args(argv)
     if args.jobs < 1:
@@ -320,9 +359,11 @@ def _main(argv=None):
             todo.append(name)
     expected = expected_seconds(results, cache, blocks)
     print(f"{len(todo)} experiment(s) to run, {args.jobs} at a time", flush=True)
-    outcome = run_scheduled(todo, blocks, jobs=args.jobs, expected=expected,
-                            command_for=replicate_command(results),
-                            log_dir=results / ".logs", echo=not args.quiet)
+    with mode_for("none" if args.quiet else args.progress):
+        outcome = run_scheduled(todo, blocks, jobs=args.jobs, expected=expected,
+                                command_for=replicate_command(results),
+                                log_dir=results / ".logs", echo=not args.quiet,
+                                child_progress="none" if args.progress == "none" else "plain")
     failures = []
     for name in todo:  # report order
         code, wall, cpu_seconds = outcome[name]

@@ -1,8 +1,12 @@
-"""Record how long the test suite took, for the speed summary in REPORT.md."""
+"""Record how long the test suite took, for the speed summary in REPORT.md; no progress
+bars or lines in tests unless a test asks for them (``REPLICATION_PROGRESS=none``)."""
 
 import json
+import os
 import time
 from pathlib import Path
+
+os.environ.setdefault("REPLICATION_PROGRESS", "none")
 
 _START = time.perf_counter()
 ROOT = Path(__file__).resolve().parent.parent

@@ -22,6 +22,7 @@ import numpy as np
 from replication.cloth import identify_problem as problem
 from replication.errors import InputError, check
 from replication.optim.objective import BudgetExhausted
+from replication.progress import bar
 
 
 @dataclass(frozen=True)
@@ -192,8 +193,10 @@ class PaperEA:
             self.F = self.objective.evaluate(self.X)
             self._sort()
             self._record()
-            while not self.done():
-                self.step()
+            with bar(self.settings.generations, "EA generations") as shown:
+                while not self.done():
+                    self.step()
+                    shown.update()
         except BudgetExhausted:
             pass
         return self

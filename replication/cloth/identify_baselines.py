@@ -24,7 +24,7 @@ from replication.errors import check
 from replication.figures import cloth_baselines_ecdf
 from replication.optim.pymoo_adapters import ALGORITHMS, run_pymoo
 from replication.optim.scipy_adapters import run_least_squares
-from replication.progress import progress
+from replication.progress import bar, progress
 
 KINDS = ("paper_ea", "structured", "pymoo", "least_squares")
 
@@ -152,15 +152,16 @@ def _one_run(task):
 def _map(tasks, workers):
     """Run tasks in order, in ``workers`` processes (1: in this process). Every run is
     seeded on its own, so the results do not depend on the number of workers."""
+    label = "runs (reference x optimiser x seed)"
     if workers == 1:
         threads = numba.get_num_threads()
         try:
-            return [_one_run(task) for task in tasks]
+            return [_one_run(task) for task in bar(tasks, label)]
         finally:
             numba.set_num_threads(threads)
     context = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
-        return list(pool.map(_one_run, tasks, chunksize=1))
+        return list(bar(pool.map(_one_run, tasks, chunksize=1), label, total=len(tasks)))
 
 
 def baselines_study(config, out):

@@ -19,7 +19,7 @@ from replication.cloth.identify import EASettings, PaperEA, identify
 from replication.cloth.identify_runs import data_files, run_rng
 from replication.cloth.io import read_trajectory
 from replication.errors import InputError, check
-from replication.progress import progress
+from replication.progress import bar, mode_for, progress
 
 METHODS = ("structured", "paper_ea")
 
@@ -162,24 +162,26 @@ def noise_study(config, out):
         method_settings(config, method)
     h = structural_length(clean)
     rows = []
-    for li, level in enumerate(levels):
-        for mi, method in enumerate(methods):
-            errors, successes, costs = [], [], []
-            for i in range(int(config["n_seeds"])):
-                noisy = add_position_noise(clean, level * h, run_rng(config["seed"], li, i))
-                run_config = {**config, "method": method}
-                best, cost, _ = _identify(run_config, noisy, run_rng(config["seed"], li, mi, i))
-                errors.append(problem.relative_errors(best, truth).tolist())
-                successes.append(problem.is_success(best, truth, config["success_rtol"]))
-                costs.append(cost)
-            abs_err = np.abs(np.array(errors))
-            rows.append({"noise_level": level, "sigma": level * h, "method": method,
-                         "median_abs_errors": dict(zip(problem.PARAM_NAMES_5 if model == "5"
-                                                       else problem.PARAM_NAMES_18,
-                                                       np.median(abs_err, 0).tolist())),
-                         "success_rate": float(np.mean(successes)),
-                         "median_cost": float(np.median(costs)), "errors": errors})
-            progress(f"noise {level} h, {method}: success {np.mean(successes):.2f}")
+    n_seeds = int(config["n_seeds"])
+    combinations = [(li, level, mi, method) for li, level in enumerate(levels)
+                    for mi, method in enumerate(methods)]
+    for li, level, mi, method in bar(combinations, "noise levels x methods"):
+        errors, successes, costs = [], [], []
+        for i in bar(range(n_seeds), "seeds"):
+            noisy = add_position_noise(clean, level * h, run_rng(config["seed"], li, i))
+            run_config = {**config, "method": method}
+            best, cost, _ = _identify(run_config, noisy, run_rng(config["seed"], li, mi, i))
+            errors.append(problem.relative_errors(best, truth).tolist())
+            successes.append(problem.is_success(best, truth, config["success_rtol"]))
+            costs.append(cost)
+        abs_err = np.abs(np.array(errors))
+        rows.append({"noise_level": level, "sigma": level * h, "method": method,
+                     "median_abs_errors": dict(zip(problem.PARAM_NAMES_5 if model == "5"
+                                                   else problem.PARAM_NAMES_18,
+                                                   np.median(abs_err, 0).tolist())),
+                     "success_rate": float(np.mean(successes)),
+                     "median_cost": float(np.median(costs)), "errors": errors})
+        progress(f"noise {level} h, {method}: success {np.mean(successes):.2f}")
     return {"data": label, "h": h, "rows": rows, "model": model}
 
 
@@ -201,9 +203,10 @@ def bench(config, out):
             objective = problem.cloth_objective(cost, space)
             initial = problem.random_population(space, settings.pop_size, rng,
                                                 rest_spread=config["init"]["rest_spread"])
-            start = time.perf_counter()
-            PaperEA(objective, settings, rng, initial).run()
-            times.append(time.perf_counter() - start)
+            with mode_for("none"):  # no live bar drawing beside the timed run
+                start = time.perf_counter()
+                PaperEA(objective, settings, rng, initial).run()
+                times.append(time.perf_counter() - start)
         metrics[f"paper_ea_{kind}_cost_seconds"] = min(times)
         metrics[f"paper_ea_{kind}_cost_median_seconds"] = float(np.median(times))
         evals[kind] = objective.n_evals

@@ -17,7 +17,7 @@ from replication.cloth.identify_problem import cost_from_config
 from replication.cloth.model import params_from_vectors
 from replication.errors import check
 from replication.figures import fig09_10_landscapes
-from replication.progress import progress
+from replication.progress import bar, progress
 
 
 def window_axes(window, tau_ref, n_grid):
@@ -64,7 +64,7 @@ def landscapes(config, out):
                                                                     "kind": kind})
                           for kind in kinds} for case in cases}
     results, figures = {}, []
-    for case_index, case in enumerate(cases):
+    for case_index, case in enumerate(bar(cases, "reference runs")):
         reference = case.truth if case.truth is not None else np.r_[
             case.space.observed_rest[:3], np.nan, np.nan]
         tau_ref = reference[4] if case.truth is not None else float(config["tau_guess"])
@@ -74,7 +74,7 @@ def landscapes(config, out):
             cost = costs[case.label][kind]
             at_truth = float(cost(params_from_vectors(reference))[0]) \
                 if case.truth is not None else None
-            for window_name, window in config["windows"].items():
+            for window_name, window in bar(config["windows"].items(), f"{kind} cost windows"):
                 Ks, taus, log = window_axes(window, tau_ref, n_grid)
                 grid = cost_grid(cost, rest, Ks, taus)
                 panels[f"{kind}/{window_name}"] = {

@@ -15,7 +15,7 @@ from replication.cloth.identify_runs import (
 )
 from replication.errors import check
 from replication.figures import cloth_paper_ea_convergence
-from replication.progress import progress
+from replication.progress import bar, progress
 
 
 def _run_record(index, ea, objective, case, rtol):
@@ -69,7 +69,7 @@ def paper_ea_study(config, out):
     runs, summary, tables, chosen = {}, {}, {}, {}
     for case_index, case in enumerate(cases):
         records, eas = [], []
-        for i in range(int(config["n_seeds"])):
+        for i in bar(range(int(config["n_seeds"])), f"paper EA seeds on {case.label}"):
             rng = run_rng(config["seed"], case_index, i)
             ea, objective = paper_ea_run(case, settings, rng,
                                          rest_spread=config["init"]["rest_spread"])

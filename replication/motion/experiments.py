@@ -14,15 +14,14 @@ from pathlib import Path
 import numpy as np
 
 from replication.errors import InputError, check
-from replication.motion import baselines, single
+from replication.motion import baselines, irc, single
+from replication.motion.derivatives import sequence_derivatives
 from replication.motion.io import (read_manifest_sequences, read_sequence,
                                    write_sequence_folder, write_sequence_npz)
 from replication.motion.synth import make_sequence
-from replication.progress import progress
+from replication.progress import bar, progress
 from replication.provenance import file_sha256
 from replication.results import write_json_atomic
-
-
 
 def _sequence_spec(base, override):
     spec = json.loads(json.dumps(base))
@@ -150,7 +149,6 @@ def _draw_figures(sequence, found, settings, figure_dir):
     """Figs. 1-4 for one sequence, from the arrays of :func:`single.find_rotation`."""
     from replication.figures import (fig01_flow, fig02_peak_vs_omega, fig03_accumulator,
                                      fig04_pixels)
-    from replication.motion import irc
 
     figure_dir.mkdir(parents=True, exist_ok=True)
     truth = _truth_of(sequence)
@@ -179,6 +177,59 @@ def _draw_figures(sequence, found, settings, figure_dir):
     return [str(p) for p in paths]
 
 
+# calls of the omega sweep at most, so that its bar moves (each call a few accumulations)
+SWEEP_STEPS = 100
+
+
+def shown_sweep(pixels, omegas, grid):
+    """:func:`irc.sweep` followed on a progress bar ("omega sweep"): the same table, computed
+    in up to :data:`SWEEP_STEPS` calls (each omega's accumulator is independent).
+
+    Parameters
+    ----------
+    pixels, omegas, grid
+        As :func:`irc.sweep`: voting pixels, ``(m,)`` non-zero omegas, accumulator grid.
+    """
+    import numba
+
+    threads = numba.get_num_threads()
+    step = threads * max(1, -(-omegas.size // (SWEEP_STEPS * threads)))
+    parts = []
+    with bar(omegas.size, "omega sweep") as shown:
+        for start in range(0, omegas.size, step):
+            parts.append(irc.sweep(pixels, omegas[start:start + step], grid))
+            shown.update(len(parts[-1]["omega"]))
+    return {key: np.concatenate([part[key] for part in parts]) for key in parts[0]}
+
+
+def find_rotation_shown(frames, settings):
+    """:func:`single.find_rotation` with its omega sweep on a progress bar (same result).
+
+    Parameters
+    ----------
+    frames : (T, H, W) ndarray
+    settings : dict
+        Keys of ``single.DEFAULTS``.
+    """
+    start = time.perf_counter()
+    pixels = sequence_derivatives(frames, sigma=settings["sigma"],
+                                  relative_threshold=settings["relative_threshold"])
+    grid = irc.image_grid(frames.shape[1:], margin=settings["margin"], cell=settings["cell"])
+    omegas = irc.omega_sweep(settings["omega_min"], settings["omega_max"],
+                             int(settings["omega_count"]))
+    progress(f"omega sweep: {omegas.size} values, {len(pixels)} voting pixels, "
+             f"accumulator {grid.ny} x {grid.nx}")
+    table = shown_sweep(pixels, omegas, grid)
+    paper = irc.paper_estimate(table)
+    middle = time.perf_counter()
+    progress(f"refining from omega = {paper['omega']:.4g} ({settings['rounds']} round(s))")
+    refined = single.refined_method(frames, paper, pixels, settings)
+    seconds = {"paper": middle - start, "refined": time.perf_counter() - middle}
+    region = refined.pop("region")
+    return {"paper": paper, "refined": refined, "seconds": seconds, "table": table,
+            "pixels": pixels, "grid": grid, "region": region}
+
+
 def single_rotation(config, out):
     """Paper 2.2 on one sequence: ``irc`` (paper estimate), ``irc_refined``, Figs. 1-4.
 
@@ -194,7 +245,7 @@ def single_rotation(config, out):
              f"{sequence.frames.shape[1]} x {sequence.frames.shape[2]}")
     check_motion(sequence)
     single.warm_up()
-    found = single.find_rotation(sequence.frames, settings)
+    found = find_rotation_shown(sequence.frames, settings)
     paper, refined = found["paper"], found["refined"]
     progress(f"paper: {paper}; refined: {refined}")
     result = {
@@ -396,7 +447,7 @@ def accuracy(config, out):
     cases = [(config, settings, chosen, name, sequences[name]["path"], i, j, noise)
              for i, name in enumerate(loaded) for j, noise in enumerate(noise_levels)]
     rows, load_before = [], os.getloadavg()[0]
-    for case in _run_cases(cases, workers):
+    for case in bar(_run_cases(cases, workers), "sequences x noise levels", total=len(cases)):
         rows.extend(case)
         progress(f"{case[0]['sequence']} noise {case[0]['noise_255']:g}/255: " + ", ".join(
             f"{r['method']} {r['centre_px']:.2f}px {r['omega_pct']:+.1f}%" for r in case))
@@ -429,9 +480,6 @@ def benchmark(config, out):
     """
     import numba
     from skimage.transform import hough_line
-
-    from replication.motion import irc
-    from replication.motion.derivatives import sequence_derivatives
 
     settings = single.settings_from(config.get("method"))
     _check_settings(settings)

@@ -1,13 +1,18 @@
-"""Image sequences (docs/data-formats.md): a folder of PNG/TIFF frames, or one ``.npz``.
+"""Image sequences (docs/data-formats.md): a folder of PNG/TIFF/JPEG frames, one
+multi-page TIFF, one video or animated GIF, or one ``.npz``.
 
 The reader refuses bad input with one line naming the file, the field, what was found and
 what was expected. Intensities are returned as float64: 8-bit data divided by 255, 16-bit
-by 65535, other dtypes unchanged. The writers are deterministic (same arrays, same bytes).
+by 65535, other dtypes unchanged. Lossy input (JPEG frames, most video codecs, GIF's
+palette) is read with a ``note:`` line on stderr. The writers are deterministic (same
+arrays, same bytes).
 """
 
 from __future__ import annotations
 
 import json
+import logging
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -16,7 +21,15 @@ import numpy as np
 from replication.cloth.io import load_npz, write_npz_deterministic
 from replication.errors import InputError
 
-FRAME_SUFFIXES = (".png", ".tif", ".tiff")
+FRAME_SUFFIXES = (".png", ".tif", ".tiff", ".jpg", ".jpeg")
+JPEG_SUFFIXES = (".jpg", ".jpeg")
+TIFF_SUFFIXES = (".tif", ".tiff")
+VIDEO_SUFFIXES = (".mp4", ".m4v", ".mov", ".avi", ".mkv", ".webm", ".mpg", ".mpeg", ".wmv",
+                  ".ogv", ".gif")
+# video codecs that keep every pixel: no note about compression for these
+LOSSLESS_CODECS = ("ffv1", "ffvhuff", "huffyuv", "png", "rawvideo", "utvideo", "qtrle")
+CONVERT_HINT = ("ffmpeg -i VIDEO frames/frame_%05d.png (then data.path=frames), or save the "
+                "frames as a multi-page TIFF")
 
 
 @dataclass(frozen=True)
@@ -56,31 +69,133 @@ def _luminance(path, image):
     return image
 
 
+def _note(path, text):
+    """A remark on input that is read but not exact (lossy compression), on stderr."""
+    print(f"note: {path}: {text}", file=sys.stderr, flush=True)
+
+
+def _reason(error):
+    return str(error).splitlines()[0] if str(error) else type(error).__name__
+
+
+def _pil_array(handle):
+    """The pixels of an open Pillow image: 16-bit kept, palette and odd modes to RGB/L."""
+    if handle.mode in ("P", "PA", "LA", "1", "CMYK", "YCbCr"):
+        handle = handle.convert("L" if handle.mode == "LA" else "RGB")
+    image = np.asarray(handle)
+    if handle.mode.startswith("I;16"):
+        image = image.astype(np.uint16)
+    elif handle.mode == "I":
+        image = image.astype(np.uint16) if image.max() < 65536 else image
+    return image
+
+
 def read_image(path):
-    """One PNG (PIL) or TIFF (tifffile) frame as ``(H, W)`` float64 luminance."""
+    """One PNG or JPEG (Pillow) or TIFF (tifffile) frame as ``(H, W)`` float64 luminance.
+
+    Parameters
+    ----------
+    path : str or Path
+    """
     path = Path(path)
     try:
-        if path.suffix.lower() == ".png":
+        if path.suffix.lower() in TIFF_SUFFIXES:
+            import tifffile
+
+            image = tifffile.imread(path)
+        else:
             from PIL import Image
 
             with Image.open(path) as handle:
                 _check_size(path, (handle.height, handle.width))
-                if handle.mode in ("P", "PA", "LA", "1"):
-                    handle = handle.convert("RGB" if handle.mode != "LA" else "L")
-                image = np.asarray(handle)
-                if handle.mode == "I;16" or handle.mode.startswith("I;16"):
-                    image = image.astype(np.uint16)
-                elif handle.mode == "I":
-                    image = image.astype(np.uint16) if image.max() < 65536 else image
-        else:
-            import tifffile
-
-            image = tifffile.imread(path)
+                image = _pil_array(handle)
     except (OSError, ValueError, SyntaxError) as error:
-        reason = str(error).splitlines()[0] if str(error) else type(error).__name__
-        raise InputError(f"{path}: cannot be read as an image ({reason}); expected a PNG "
-                         "or TIFF frame") from None
+        raise InputError(f"{path}: cannot be read as an image ({_reason(error)}); expected a "
+                         "PNG, TIFF or JPEG frame") from None
     return _luminance(path, _to_float(path, "pixels", image))
+
+
+def _read_tiff_stack(path):
+    """A multi-page TIFF: page ``t`` is frame ``t``, each page read like a TIFF frame."""
+    import tifffile
+
+    images, reason = [], "no readable page"
+    logger = logging.getLogger("tifffile")
+    level = logger.level
+    logger.setLevel(logging.ERROR)  # its warnings on a broken file: our one line says it
+    try:
+        with tifffile.TiffFile(path) as tiff:
+            for index, page in enumerate(tiff.pages):
+                _check_size(path, (page.imagelength, page.imagewidth))
+                if page.samplesperpixel > 1 and page.planarconfig == 2:
+                    _fail(path, f"page {index}", f"{page.samplesperpixel} separate colour "
+                          f"planes, shape {page.shape}", "one grey or interleaved-colour "
+                          "page per frame (tifffile.imwrite(path, frames, "
+                          "photometric='minisblack') writes (T, H, W) so)")
+                image = _luminance(path, _to_float(path, f"page {index}", page.asarray()))
+                if images and image.shape != images[0].shape:
+                    _fail(path, f"page {index}", f"{image.shape[0]} x {image.shape[1]} pixels",
+                          f"the shape of page 0, {images[0].shape[0]} x {images[0].shape[1]}")
+                images.append(image)
+    except (OSError, ValueError) as error:
+        if isinstance(error, InputError):
+            raise
+        images, reason = [], _reason(error)
+    finally:
+        logger.setLevel(level)
+    if not images:
+        raise InputError(f"{path}: cannot be read as a TIFF stack ({reason}); expected a "
+                         "multi-page TIFF, one page per frame")
+    return np.stack(images)
+
+
+def _read_gif(path):
+    """An animated GIF: its frames (Pillow, disposal applied) as luminance."""
+    from PIL import Image, ImageSequence
+
+    try:
+        with Image.open(path) as handle:
+            _check_size(path, (handle.height, handle.width))
+            images = [_luminance(path, _to_float(path, f"frame {index}", np.asarray(
+                frame.convert("RGB")))) for index, frame in
+                enumerate(ImageSequence.Iterator(handle))]
+    except (OSError, ValueError, SyntaxError) as error:
+        raise InputError(f"{path}: cannot be read as an animated GIF ({_reason(error)}); "
+                         f"expected a GIF, or convert it: {CONVERT_HINT}") from None
+    _note(path, "GIF frames hold at most 256 colours: the quantisation adds noise to the "
+                "image derivatives (lossless frames, PNG or TIFF, are better)")
+    return np.stack(images)
+
+
+def _read_video(path):
+    """A video file (PyAV through imageio): its frames in decoding order as luminance."""
+    try:
+        import av
+    except ImportError:
+        raise InputError(f"{path}: reading a video needs PyAV (pip install av==18.1.0, as "
+                         f"pinned in requirements.lock); or convert it: {CONVERT_HINT}") \
+            from None
+    import imageio.v3 as iio
+
+    images = []
+    try:
+        with iio.imopen(path, "r", plugin="pyav") as video:
+            codec = video.metadata().get("codec")
+            for index, frame in enumerate(video.iter(format="rgb24")):
+                if index == 0:
+                    _check_size(path, frame.shape[:2])
+                images.append(_luminance(path, _to_float(path, f"frame {index}", frame)))
+    except (OSError, ValueError, av.FFmpegError) as error:
+        if isinstance(error, InputError):
+            raise
+        raise InputError(f"{path}: cannot be read as a video ({_reason(error)}); expected a "
+                         f"video that ffmpeg decodes, or convert it: {CONVERT_HINT}") from None
+    if not images:
+        _fail(path, "frames", "no video frame", f"a video with frames ({CONVERT_HINT})")
+    if codec not in LOSSLESS_CODECS:
+        _note(path, f"{codec} video is lossy: compression artefacts add noise to the image "
+                    "derivatives (frames are read as 8-bit RGB, then luminance)")
+    return np.stack(images)
 
 
 def _frame_files(folder):
@@ -156,9 +271,12 @@ def _parse_truth(path, text):
 def _read_folder(folder):
     files, label_files = _frame_files(folder)
     if not files:
-        _fail(folder, "frames", "no PNG or TIFF file", "frames named in time order "
+        _fail(folder, "frames", "no PNG, TIFF or JPEG file", "frames named in time order "
               "(e.g. frame_000.png, frame_001.png)")
     images = [read_image(p) for p in files]
+    if any(p.suffix.lower() in JPEG_SUFFIXES for p in files):
+        _note(folder, "JPEG frames are lossy: compression artefacts add noise to the image "
+                      "derivatives (lossless frames, PNG or TIFF, are better)")
     for p, image in zip(files, images):
         if image.shape != images[0].shape:
             _fail(p, "shape", f"{image.shape[0]} x {image.shape[1]} pixels",
@@ -205,7 +323,8 @@ def _read_npz(path):
 
 
 def read_sequence(path):
-    """Read and validate an image sequence (folder of frames or ``.npz``).
+    """Read and validate an image sequence: a folder of frames, a multi-page TIFF, a video
+    or animated GIF, or an ``.npz`` (docs/data-formats.md).
 
     Parameters
     ----------
@@ -224,16 +343,28 @@ def read_sequence(path):
         frame, NaN or inf, labels of the wrong shape, bad truth JSON.
     """
     path = Path(path)
+    expected = ("a folder of PNG/TIFF/JPEG frames, a multi-page TIFF, a video, or an .npz "
+                "with 'frames' (docs/data-formats.md)")
     if not path.exists():
-        raise InputError(f"{path}: no such file or folder; expected a folder of PNG/TIFF "
-                         "frames or an .npz with 'frames' (docs/data-formats.md)")
+        raise InputError(f"{path}: no such file or folder; expected {expected}")
+    suffix = path.suffix.lower()
+    labels = truth = None
     if path.is_dir():
         frames, labels, truth = _read_folder(path)
-    elif path.suffix.lower() == ".npz":
+    elif suffix == ".npz":
         frames, labels, truth = _read_npz(path)
+    elif suffix in TIFF_SUFFIXES:
+        frames = _read_tiff_stack(path)
+    elif suffix == ".gif":
+        frames = _read_gif(path)
+    elif suffix in VIDEO_SUFFIXES:
+        frames = _read_video(path)
+    elif suffix in FRAME_SUFFIXES:
+        raise InputError(f"{path}: a single image; expected {expected}: put the frames in "
+                         "one folder, named in time order")
     else:
-        raise InputError(f"{path}: unsupported file type '{path.suffix}'; expected a folder "
-                         "of PNG/TIFF frames or an .npz with 'frames'")
+        raise InputError(f"{path}: unsupported file type '{path.suffix}'; expected "
+                         f"{expected}")
     _check_frames(path, frames)
     if labels is not None and labels.shape != frames.shape:
         _fail(path, "labels", f"shape {labels.shape}", f"the frames' shape {frames.shape}")

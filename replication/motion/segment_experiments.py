@@ -16,7 +16,7 @@ from replication.errors import check
 from replication.motion.io import (read_manifest_sequences, read_sequence,
                                    write_sequence_folder, write_sequence_npz)
 from replication.motion.multi_synth import check_object, make_multi_sequence
-from replication.progress import progress
+from replication.progress import bar, progress
 from replication.provenance import file_sha256
 from replication.results import write_json_atomic
 
@@ -322,17 +322,19 @@ def study(config, out):
         check(sequence.truth is not None and sequence.labels is not None,
               f"{sequence.source}: truth or labels missing; expected both for the study")
     rows = []
-    for index, (name, sequence) in enumerate(loaded.items()):
-        role = sequences[name]["role"]
-        for method, count in seeds.items():
-            if role == "heldout" and method in ablations:
-                continue
+    plan = [(index, name, method, count) for index, name in enumerate(loaded)
+            for method, count in seeds.items()
+            if not (sequences[name]["role"] == "heldout" and method in ablations)]
+    with bar(sum(count for *_, count in plan), "segmentation runs") as shown:
+        for index, name, method, count in plan:
+            sequence, role = loaded[name], sequences[name]["role"]
             for run in range(count):
                 rng = np.random.default_rng([int(config["seed"]), index, run])
                 start = time.perf_counter()
                 objects = _run_method(method, sequence.frames, settings, flow_settings, rng,
                                       ablations)
                 seconds = time.perf_counter() - start
+                shown.update()
                 score = score_objects(objects, sequence.labels[0], sequence.truth)
                 rows.append({"sequence": name, "role": role, "method": method, "run": run,
                              "seconds": seconds, **score})

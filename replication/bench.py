@@ -16,7 +16,16 @@ from replication.results import read_result
 
 
 def gather_benchmarks(config, out):
-    """Collect area benchmark metrics, the test-suite time and the regeneration time."""
+    """Collect area benchmark metrics, the test-suite time and the regeneration time.
+
+    Parameters
+    ----------
+    config : dict
+        The resolved ``bench`` config (``results_dir``: where ``bench_*/result.json``,
+        ``tests.json`` and ``regenerate-full.json`` are read; ``goals``).
+    out : Path
+        The run's output folder.
+    """
     results_dir = Path(config["results_dir"])
     check(results_dir.is_dir(), f"results_dir={results_dir}: no such folder")
     metrics, sources = {}, {}

@@ -173,7 +173,20 @@ def time_limit(seconds):
 
 
 def report_warnings(result, strict):
-    """Print the runner's ``warnings`` on stderr; with ``strict`` refuse the run."""
+    """Print the runner's ``warnings`` on stderr; with ``strict`` refuse the run.
+
+    Parameters
+    ----------
+    result : dict
+        The runner's result; its ``warnings`` (a list of strings) are printed.
+    strict : bool
+        ``strict=true``: a warning refuses the run.
+
+    Raises
+    ------
+    InputError
+        With ``strict`` and at least one warning (the first one names the refusal).
+    """
     warnings = [str(w) for w in result.get("warnings") or []]
     for warning in warnings:
         print(f"warning: {warning}", file=sys.stderr)
@@ -188,6 +201,15 @@ def run_experiment(config, out, defaults=None):
 
     ``defaults``: the experiment's own config (without overrides), against which the
     config's types are checked; composed here when not given.
+
+    Parameters
+    ----------
+    config : dict
+        The resolved config (plain dict), with ``runner``, ``name`` and ``out``.
+    out : str or Path
+        Where ``result.json`` goes (written atomically, after every other file).
+    defaults : dict, optional
+        The experiment's own config, without overrides.
     """
     if not config.get("runner"):
         raise InputError(

@@ -10,6 +10,13 @@ class InputError(ValueError):
 
 
 def check(condition, message):
-    """Raise :class:`InputError` with ``message`` unless ``condition`` holds."""
+    """Raise :class:`InputError` with ``message`` unless ``condition`` holds.
+
+    Parameters
+    ----------
+    condition : bool
+    message : str
+        One line: the setting or file, what was found, what was expected.
+    """
     if not condition:
         raise InputError(message)

@@ -103,7 +103,17 @@ def _fits(expected, value):
 
 def check_types(defaults, config, where=""):
     """Refuse values of ``config`` whose kind differs from the experiment's own value in
-    ``defaults``, and non-finite numbers where the experiment has a finite one."""
+    ``defaults``, and non-finite numbers where the experiment has a finite one.
+
+    Parameters
+    ----------
+    defaults : object
+        The experiment's value (dict, list or scalar), walked together with ``config``.
+    config : object
+        The value of the run's config at the same place.
+    where : str
+        Dotted name of the place, for the message (``method.sigma``).
+    """
     if isinstance(defaults, dict) and isinstance(config, dict):
         for key, value in config.items():
             if key in defaults:
@@ -125,7 +135,12 @@ def check_types(defaults, config, where=""):
 
 
 def inside(path, folder):
-    """Whether ``path`` is ``folder`` or below it (both resolved)."""
+    """Whether ``path`` is ``folder`` or below it (both resolved).
+
+    Parameters
+    ----------
+    path, folder : str or Path
+    """
     try:
         Path(path).resolve().relative_to(Path(folder).resolve())
         return True
@@ -139,7 +154,15 @@ def protected_folders():
 
 
 def check_out(out, *, force):
-    """Refuse an empty ``out`` and, without ``force``, one inside ``results/``."""
+    """Refuse an empty ``out`` and, without ``force``, one inside ``results/``.
+
+    Parameters
+    ----------
+    out : str
+        The ``out`` config value.
+    force : bool
+        ``force=true``: the committed ``results/`` may be written.
+    """
     check(isinstance(out, str), f"out={out!r}: expected a folder path")
     check(out.strip() != "", "out=: empty; expected a folder (out=DIR), outside results/ "
                              "unless force=true")
@@ -217,6 +240,13 @@ def check_config(config, defaults):
     """Every check of this module on a resolved ``config`` (plain dict), before any work.
 
     ``defaults``: the experiment's config without the command line's overrides.
+
+    Parameters
+    ----------
+    config : dict
+        The resolved config of the run.
+    defaults : dict or None
+        The experiment's own config (``None``: no type check).
     """
     set_limits(config.get("limits"))
     seed = config.get("seed")

@@ -104,7 +104,15 @@ def duration(seconds):
 
 
 def rate_text(count, seconds):
-    """Items per second (or per minute when slow), e.g. ``3.1/s``."""
+    """Items per second (or per minute when slow), e.g. ``3.1/s``.
+
+    Parameters
+    ----------
+    count : int
+        Steps done.
+    seconds : float
+        Time they took.
+    """
     rate = count / seconds if seconds > 0 else math.inf
     if rate >= 0.1 or rate == 0:
         return f"{rate:.3g}/s" if math.isfinite(rate) else "-/s"
@@ -235,5 +243,16 @@ class Bar:
 
 
 def bar(items, label, *, total=None):
-    """A :class:`Bar` over ``items`` (an iterable, or a number of steps) named ``label``."""
+    """A :class:`Bar` over ``items`` (an iterable, or a number of steps) named ``label``.
+
+    Parameters
+    ----------
+    items : iterable or int
+        What the loop goes over (iterate the bar), or its number of steps (then use it in a
+        ``with`` block and call :meth:`Bar.update`).
+    label : str
+        What is counted (``"seeds"``).
+    total : int, optional
+        Number of steps when ``items`` has no ``len()`` (a generator).
+    """
     return Bar(items, label, total=total)

@@ -41,7 +41,20 @@ CACHE_FILE = ".regenerate-cache.json"
 
 
 def resolved_configs(names, config_dir=CONFIG_DIR):
-    """The resolved config of each experiment, exactly as ``replicate`` composes it."""
+    """The resolved config of each experiment, exactly as ``replicate`` composes it.
+
+    Parameters
+    ----------
+    names : list of str
+        Experiment names.
+    config_dir : str or Path
+        ``configs/experiment`` (its parent is Hydra's config folder).
+
+    Returns
+    -------
+    dict
+        ``{name: resolved config}``.
+    """
     import replication.cli  # noqa: F401  (registers the config resolvers)
 
     configs = {}
@@ -54,7 +67,20 @@ def resolved_configs(names, config_dir=CONFIG_DIR):
 
 def experiment_keys(entries, configs):
     """Provenance (config, code and input hashes, as ``replicate`` writes them) and cache key
-    (provenance plus the keys of the experiments it depends on) of each experiment."""
+    (provenance plus the keys of the experiments it depends on) of each experiment.
+
+    Parameters
+    ----------
+    entries : list of tuple
+        ``(order, name, report block)`` of :func:`replication.report.experiment_entries`.
+    configs : dict
+        ``{name: resolved config}`` (:func:`resolved_configs`).
+
+    Returns
+    -------
+    provenance, keys : dict
+        ``{name: provenance}`` and ``{name: sha256 hex}``.
+    """
     provenance, keys = {}, {}
     for _, name, block in entries:
         config = configs[name]
@@ -89,7 +115,16 @@ def _cached(cache, name):
 
 
 def expected_seconds(results, cache, names):
-    """Last recorded wall time of each experiment: the cache, else the last full run."""
+    """Last recorded wall time of each experiment: the cache, else the last full run.
+
+    Parameters
+    ----------
+    results : Path
+        The results folder (``regenerate-full.json`` is read there).
+    cache : dict
+        The contents of ``.regenerate-cache.json``.
+    names : iterable of str
+    """
     recorded = _read_json_object(results / "regenerate-full.json").get("experiments", {})
     recorded = recorded if isinstance(recorded, dict) else {}
     expected = {}
@@ -108,6 +143,19 @@ def stale_experiments(entries, results, provenance, keys, cache, *, force=False)
     of keys (which include the dependencies' keys) catches a dependency recomputed by an
     earlier, interrupted run. Without a cache (a fresh clone) the committed results
     whose provenance matches are current.
+
+    Parameters
+    ----------
+    entries : list of tuple
+        ``(order, name, report block)``.
+    results : Path
+        Folder of ``NAME/result.json``.
+    provenance, keys : dict
+        From :func:`experiment_keys`.
+    cache : dict
+        The contents of ``.regenerate-cache.json`` (``{}`` on a fresh clone).
+    force : bool
+        Every experiment is stale.
     """
     current = {}
     for _, name, _ in entries:
@@ -180,6 +228,13 @@ def sharing_environment(jobs, environ=None):
     fig09_10 used 43-58 s of CPU spinning, 27 s passive). ``OMP_WAIT_POLICY=PASSIVE`` makes
     them sleep; it changes no result. Benchmarks run alone with the default policy. A
     policy set by the user is kept.
+
+    Parameters
+    ----------
+    jobs : int
+        Experiments run at once.
+    environ : dict, optional
+        The environment to start from (default ``os.environ``).
     """
     environ = dict(os.environ if environ is None else environ)
     if jobs > 1:
@@ -190,7 +245,16 @@ def sharing_environment(jobs, environ=None):
 def critical_paths(names, blocks, expected):
     """Expected seconds from the start of each experiment to the end of the longest chain
     of experiments that depend on it (its own time plus the longest of its dependents'):
-    starting the longest chains first keeps a long study from waiting on its data."""
+    starting the longest chains first keeps a long study from waiting on its data.
+
+    Parameters
+    ----------
+    names : list of str
+    blocks : dict
+        ``{name: report block}`` (``depends_on``).
+    expected : dict
+        ``{name: seconds}``; a missing name counts 0.
+    """
     dependents = {name: [n for n in names if name in blocks[n].get("depends_on", [])]
                   for name in names}
     paths = {}

@@ -60,7 +60,14 @@ def command_line(result):
 
 
 def fmt(value, digits=4):
-    """Numbers for tables: general format with ``digits`` significant digits."""
+    """Numbers for tables: general format with ``digits`` significant digits.
+
+    Parameters
+    ----------
+    value : number, str or None
+        A string is returned unchanged, ``None`` as ``n/a``.
+    digits : int
+    """
     if isinstance(value, str):
         return value
     if value is None:

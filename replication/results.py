@@ -53,7 +53,14 @@ def to_jsonable(value):
 
 
 def write_json_atomic(path, payload):
-    """Write ``payload`` as JSON to ``path`` so that readers never see a partial file."""
+    """Write ``payload`` as JSON to ``path`` so that readers never see a partial file.
+
+    Parameters
+    ----------
+    path : str or Path
+    payload : dict
+        Made JSON-safe by :func:`to_jsonable` (non-finite floats become strings).
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     text = json.dumps(to_jsonable(payload), indent=2, sort_keys=False) + "\n"

@@ -33,7 +33,14 @@ class SweepError(Exception):
 
 
 def flatten(value, prefix=""):
-    """Numeric and string leaves of nested dicts and lists, keys joined with dots."""
+    """Numeric and string leaves of nested dicts and lists, keys joined with dots.
+
+    Parameters
+    ----------
+    value : dict, list or scalar
+    prefix : str
+        Key of ``value`` itself (``""`` at the top).
+    """
     if isinstance(value, dict):
         items = value.items()
     elif isinstance(value, list):
@@ -82,7 +89,15 @@ def check_one_experiment(results):
 
 def gather(sweep_dir, results=None):
     """Rows (dicts) for every ``result.json`` below ``sweep_dir`` (or for ``results``, as
-    :func:`load_results` gives them), sorted by folder."""
+    :func:`load_results` gives them), sorted by folder.
+
+    Parameters
+    ----------
+    sweep_dir : str or Path
+        A multirun folder (``multirun/NAME``).
+    results : list, optional
+        ``(run folder, result)`` pairs already loaded.
+    """
     rows = []
     for run, result in load_results(sweep_dir) if results is None else results:
         row = {"run": str(run), **overrides_of(run)}
@@ -129,6 +144,15 @@ def check_names(rows, metrics, x):
     """Refuse metrics that are not numeric columns and an ``x`` that is not an override.
 
     Returns the x column (``override.NAME``) or ``None`` when nothing varies.
+
+    Parameters
+    ----------
+    rows : list of dict
+        Rows of :func:`gather`.
+    metrics : list of str
+        Column names asked for (``--metric``).
+    x : str or None
+        The override asked for as x axis (``--x``), or ``None`` for the first swept one.
     """
     numeric = numeric_columns(rows)
     for metric in metrics:
@@ -166,6 +190,14 @@ def series(rows, metric, x):
 
     Runs are grouped by the other varying overrides except ``seed``; within a group the
     line is the median over the runs at each x (runs differing only in seed).
+
+    Parameters
+    ----------
+    rows : list of dict
+    metric : str
+        A numeric column.
+    x : str
+        An override column (``override.NAME``).
 
     Returns
     -------
@@ -207,13 +239,28 @@ def _is_float(value):
 
 
 def plot_name(metric, x):
-    """File name of the plot of ``metric`` against the override column ``x``."""
+    """File name of the plot of ``metric`` against the override column ``x``.
+
+    Parameters
+    ----------
+    metric : str
+    x : str
+    """
     safe = lambda name: re.sub(r"[^A-Za-z0-9._-]+", "_", name)  # noqa: E731
     return f"sweep_{safe(metric)}_vs_{safe(x[len(PREFIX):])}.png"
 
 
 def write_plots(rows, metrics, x, folder):
-    """One PNG per metric in ``folder``; returns the paths."""
+    """One PNG per metric in ``folder``; returns the paths.
+
+    Parameters
+    ----------
+    rows : list of dict
+    metrics : list of str
+    x : str
+        The override column of the x axis.
+    folder : Path
+    """
     from replication.figures.sweep import plot_series
 
     paths = []

@@ -25,7 +25,14 @@ def _scatter(index, values, size):
 
 
 def numpy_step(x, v, rest, k, tau, scene):
-    """One contract step for one individual in plain numpy. x, v : (P, 3); rest, k, tau : (6,)."""
+    """One contract step for one individual in plain numpy. x, v : (P, 3); rest, k, tau : (6,).
+
+    Parameters
+    ----------
+    x, v : (P, 3) ndarray
+    rest, k, tau : (6,) ndarray
+    scene : Scene
+    """
     a, b, kind = scene.spring_a, scene.spring_b, scene.spring_type
     n_particles = len(x)
     mass = scene.mass[:, None]
@@ -70,7 +77,14 @@ def _population(config, rng):
 
 
 def bench_cloth(config, out):
-    """Spring updates per second (compiled, and the numpy baseline) and cost timings."""
+    """Spring updates per second (compiled, and the numpy baseline) and cost timings.
+
+    Parameters
+    ----------
+    config, out
+        The resolved ``bench_cloth`` config (plain dict, docs/experiments.md) and the run's
+        output folder.
+    """
     pop, n_steps, repeats = int(config["pop"]), int(config["n_steps"]), int(config["repeats"])
     check(pop >= 1 and n_steps >= 1 and repeats >= 1,
           f"pop={pop}, n_steps={n_steps}, repeats={repeats}: expected positive integers")

@@ -30,6 +30,16 @@ def cost_frames(kind, n_frames, *, frame=SMALL_FRAME, start=FULL_START, window=F
     """Frames ``t`` whose prediction of ``t+1`` enters the cost.
 
     ``kind`` is ``"small"`` (one frame) or ``"full"`` (``window`` frames from ``start``).
+
+    Parameters
+    ----------
+    kind : "small" or "full"
+    n_frames : int
+        Frames in the data (every ``t + 1`` must exist).
+    frame : int
+        The small cost's frame.
+    start, window : int
+        The full cost's first frame and number of frames.
     """
     if kind == "small":
         frames = np.array([frame])
@@ -84,6 +94,13 @@ class ClothCost:
 
         ``extra_force`` : (pop or 1, F or 1, n*n, 3), optional: external forces (effect
         plug-ins) per individual and cost frame, added before integration.
+
+        Parameters
+        ----------
+        params : ClothParams
+            ``(pop, 6)`` per-type parameters.
+        extra_force : ndarray, optional
+            Shape ``(pop or 1, F or 1, n*n, 3)``.
         """
         if extra_force is None:
             extra_force = self._no_force
@@ -100,6 +117,23 @@ class ClothCost:
 
 def make_cost(trajectory, kind="small", *, frame=SMALL_FRAME, start=FULL_START,
               window=FULL_WINDOW, dtc=None, h=None):
-    """The paper's small (``kind="small"``) or full (``kind="full"``) cost on ``trajectory``."""
+    """The paper's small (``kind="small"``) or full (``kind="full"``) cost on ``trajectory``.
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+    kind : "small" or "full"
+    frame, start, window : int
+        As :func:`cost_frames`.
+    dtc : float, optional
+        Weight of velocity errors (default: the data's ``dt``).
+    h : float, optional
+        Normalisation length (default: the mean structural length).
+
+    Returns
+    -------
+    ClothCost
+        Callable: ``cost(params) -> (pop,)``.
+    """
     frames = cost_frames(kind, trajectory.n_frames, frame=frame, start=start, window=window)
     return ClothCost(trajectory, frames, dtc=dtc, h=h)

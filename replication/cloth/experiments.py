@@ -20,7 +20,13 @@ from replication.results import write_json_atomic
 
 
 def reference_file(data_dir, tau):
-    """Path of the reference run for ``tau`` inside ``data_dir``."""
+    """Path of the reference run for ``tau`` inside ``data_dir``.
+
+    Parameters
+    ----------
+    data_dir : str or Path
+    tau : float
+    """
     return Path(data_dir) / f"reference_tau{tau:g}.npz"
 
 
@@ -31,7 +37,14 @@ def _scene_from_config(scene_cfg):
 
 
 def reference_runs(config, out):
-    """Paper 3.4: the K = 4, tau = 0.1 and 0.5 reference runs, with a manifest of sha256."""
+    """Paper 3.4: the K = 4, tau = 0.1 and 0.5 reference runs, with a manifest of sha256.
+
+    Parameters
+    ----------
+    config, out
+        The resolved ``cloth_reference`` config (plain dict, docs/experiments.md) and the run's
+        output folder.
+    """
     scene_cfg = config["scene"]
     n_steps = int(config["n_steps"])
     check(n_steps >= 2, f"n_steps={n_steps}: expected at least 2 steps (T >= 3 frames)")
@@ -65,7 +78,14 @@ def reference_runs(config, out):
 
 
 def fig08_mesh(config, out):
-    """Paper Fig. 8: draw the mesh and its spring families; count the springs."""
+    """Paper Fig. 8: draw the mesh and its spring families; count the springs.
+
+    Parameters
+    ----------
+    config, out
+        The resolved ``fig08_mesh`` config (plain dict, docs/experiments.md) and the run's
+        output folder.
+    """
     from replication.cloth.mesh import TYPE_NAMES, flat_rest_positions, springs
     from replication.figures import fig08_mesh as figure
 
@@ -87,7 +107,14 @@ def _rms_h(a, b, h):
 
 
 def fig11_reconstruction(config, out):
-    """Paper Fig. 11: the reference animation beside re-simulations from given parameters."""
+    """Paper Fig. 11: the reference animation beside re-simulations from given parameters.
+
+    Parameters
+    ----------
+    config, out
+        The resolved ``fig11_reconstruction`` config (plain dict, docs/experiments.md) and the run's
+        output folder.
+    """
     from replication.cloth.costs import structural_length
     from replication.figures import fig11_reconstruction as figure
 

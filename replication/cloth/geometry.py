@@ -82,14 +82,28 @@ def spring_sums(ops, x):
 
 
 def spring_force(A, B, rest, k):
-    """Spring forces ``sum_t k_t (A_t - l_t B_t)``, (F, P, 3), from :func:`spring_sums`."""
+    """Spring forces ``sum_t k_t (A_t - l_t B_t)``, (F, P, 3), from :func:`spring_sums`.
+
+    Parameters
+    ----------
+    A, B : (6, F, P, 3) ndarray
+        Per-type sums of :func:`spring_sums`.
+    rest, k : (6,) array_like
+        Per-type rest lengths ``l_t`` and stiffnesses ``k_t``.
+    """
     rest = np.asarray(rest, dtype=float)
     k = np.asarray(k, dtype=float)
     return np.einsum("t,tfpc->fpc", k, A) - np.einsum("t,tfpc->fpc", k * rest, B)
 
 
 def dashpot_sums(ops, x, v):
-    """Spring-axis relative velocity ``sum +-((v_b - v_a).u) u`` over all springs, (F, P, 3)."""
+    """Spring-axis relative velocity ``sum +-((v_b - v_a).u) u`` over all springs, (F, P, 3).
+
+    Parameters
+    ----------
+    ops : MeshOperators
+    x, v : (F, P, 3) ndarray
+    """
     total = np.zeros_like(x)
     for t in range(N_TYPES):
         idx = ops.type_slices[t]

@@ -88,7 +88,14 @@ def _pool(size, fraction):
 
 
 def reflect(X, lower, upper):
-    """Reflect values outside ``[lower, upper]`` back inside (then clip), same shape."""
+    """Reflect values outside ``[lower, upper]`` back inside (then clip), same shape.
+
+    Parameters
+    ----------
+    X : ndarray
+    lower, upper : ndarray
+        Bounds, broadcast against ``X``.
+    """
     width = upper - lower
     Y = np.abs((X - lower) % (2.0 * width))
     Y = np.where(Y > width, 2.0 * width - Y, Y)
@@ -97,7 +104,18 @@ def reflect(X, lower, upper):
 
 def mutate(parents, rng, *, lower, upper, scale, n_params):
     """Paper 3.3 mutation: ``n_params`` randomly chosen parameters of each parent row get
-    Gaussian noise of ``scale`` times the bound width. parents: (m, n_var) -> (m, n_var)."""
+    Gaussian noise of ``scale`` times the bound width. parents: (m, n_var) -> (m, n_var).
+
+    Parameters
+    ----------
+    parents : (m, n_var) ndarray
+    rng : np.random.Generator
+    lower, upper : (n_var,) ndarray
+    scale : float
+        Noise standard deviation as a fraction of the bound width.
+    n_params : int
+        Parameters mutated per child.
+    """
     children = parents.copy()
     m, n_var = parents.shape
     n_params = min(n_params, n_var)
@@ -111,7 +129,15 @@ def mutate(parents, rng, *, lower, upper, scale, n_params):
 def uniform_crossover(pool, n_children, n_parents, rng):
     """Paper 3.3 crossover: for each child, ``n_parents`` parents drawn (without
     replacement when possible) from ``pool`` (k, n_var); each parameter is copied from one
-    of them chosen uniformly. Returns (n_children, n_var)."""
+    of them chosen uniformly. Returns (n_children, n_var).
+
+    Parameters
+    ----------
+    pool : (k, n_var) ndarray
+        The best-ranked individuals.
+    n_children, n_parents : int
+    rng : np.random.Generator
+    """
     k, n_var = pool.shape
     children = np.empty((n_children, n_var))
     for row in range(n_children):

@@ -47,6 +47,19 @@ def run_optimiser(entry, case, *, budget, rng, seed, rest_spread):
     """One run of optimiser ``entry`` on ``case`` with ``budget`` evaluations.
 
     Returns the objective (its trace holds the run) and the optimiser's own info.
+
+    Parameters
+    ----------
+    entry : dict
+        One item of the config's ``optimisers`` (``name``, ``kind`` and its settings).
+    case : Case
+    budget : int
+        Evaluations allowed.
+    rng : np.random.Generator
+    seed : int
+        pymoo's seed.
+    rest_spread : float
+        Initial spread of rest lengths (paper EA).
     """
     kind = entry["kind"]
     objective = problem.cloth_objective(case.cost, case.space, budget=budget,
@@ -76,7 +89,17 @@ def _checkpoints(budget):
 
 
 def score_run(objective, case, budgets, rtol):
-    """Success, cost and errors at each budget, and evaluations to success, from a trace."""
+    """Success, cost and errors at each budget, and evaluations to success, from a trace.
+
+    Parameters
+    ----------
+    objective : Objective
+        After the run: its trace.
+    case : Case
+    budgets : list of int
+    rtol : float
+        Success tolerance.
+    """
     trace = objective.trace
     record = {"n_evals": objective.n_evals,
               "curve": [trace.best_at(b) for b in _checkpoints(max(budgets))],
@@ -165,7 +188,14 @@ def _map(tasks, workers):
 
 
 def baselines_study(config, out):
-    """Runner of ``cloth_baselines``: every optimiser, ``n_seeds`` seeds, each reference."""
+    """Runner of ``cloth_baselines``: every optimiser, ``n_seeds`` seeds, each reference.
+
+    Parameters
+    ----------
+    config, out
+        The resolved ``cloth_baselines`` config (plain dict, docs/experiments.md) and the run's
+        output folder.
+    """
     check_common(config)
     optimisers = config["optimisers"]
     _check_optimisers(optimisers)

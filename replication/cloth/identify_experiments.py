@@ -33,7 +33,13 @@ class ToleranceError(InputError):
 
 
 def method_settings(config, method):
-    """Settings of ``method`` from the config (validated)."""
+    """Settings of ``method`` from the config (validated).
+
+    Parameters
+    ----------
+    config : dict
+    method : "structured" or "paper_ea"
+    """
     check(method in METHODS, f"method={method!r}: expected one of {', '.join(METHODS)}")
     if method == "paper_ea":
         EASettings.from_config(config["ea"])
@@ -67,7 +73,14 @@ AT_BOUND = 1e-3
 def bound_warnings(best, space, names):
     """One warning per identified parameter at (within :data:`AT_BOUND` of the interval
     of) a bound of the search space: the optimum may lie outside it, or the data may not
-    determine the parameter."""
+    determine the parameter.
+
+    Parameters
+    ----------
+    best : (n_var,) array_like
+    space : SearchSpace
+    names : sequence of str
+    """
     best = np.asarray(best, dtype=float)
     width = space.upper - space.lower
     warnings = []
@@ -101,7 +114,14 @@ def _identification_result(config, label, trajectory, best, cost, info):
 
 
 def identify_run(config, out):
-    """Runner of ``cloth_identify`` (and ``cloth_identify_18``): one identification."""
+    """Runner of ``cloth_identify`` (and ``cloth_identify_18``): one identification.
+
+    Parameters
+    ----------
+    config, out
+        The resolved ``cloth_identify`` config (plain dict, docs/experiments.md) and the run's
+        output folder.
+    """
     label, _, trajectory = _single_trajectory(config)
     best, cost, info = _identify(config, trajectory, run_rng(config["seed"]))
     progress(f"identified {label}: cost {cost:.3g} after {info['n_evals']} evaluations")
@@ -110,7 +130,14 @@ def identify_run(config, out):
 
 def ci_check(config, out):
     """Runner of ``cloth_ci``: identify the good case; fail when a parameter leaves its
-    tolerance (``tolerance: {name: relative}``)."""
+    tolerance (``tolerance: {name: relative}``).
+
+    Parameters
+    ----------
+    config, out
+        The resolved ``cloth_ci`` config (plain dict, docs/experiments.md) and the run's
+        output folder.
+    """
     label, path, trajectory = _single_trajectory(config)
     model = str(config["model"])
     names = problem.PARAM_NAMES_18 if model == "18" else problem.PARAM_NAMES_5
@@ -139,7 +166,15 @@ def ci_check(config, out):
 
 def add_position_noise(trajectory, sigma, rng):
     """``trajectory`` with Gaussian noise of standard deviation ``sigma`` added to the
-    positions of free particles; velocities are re-derived from the noisy positions."""
+    positions of free particles; velocities are re-derived from the noisy positions.
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+    sigma : float
+        Standard deviation, in the trajectory's length unit.
+    rng : np.random.Generator
+    """
     scene = trajectory.scene()
     positions = trajectory.flat_positions().copy()
     noise = sigma * rng.standard_normal(positions.shape)
@@ -150,7 +185,14 @@ def add_position_noise(trajectory, sigma, rng):
 
 def noise_study(config, out):
     """Runner of ``cloth_identify_noise``: parameter errors against position noise
-    ``sigma = level * h`` for each method, ``n_seeds`` seeds (new noise and new search)."""
+    ``sigma = level * h`` for each method, ``n_seeds`` seeds (new noise and new search).
+
+    Parameters
+    ----------
+    config, out
+        The resolved ``cloth_identify_noise`` config (plain dict, docs/experiments.md) and the run's
+        output folder.
+    """
     label, _, clean = _single_trajectory(config)
     model = str(config["model"])
     truth = problem.truth_vector(clean, model)
@@ -187,7 +229,14 @@ def noise_study(config, out):
 
 def bench(config, out):
     """Runner of ``bench_identify``: wall time of one paper-EA run (pop x generations)
-    with the small and the full cost, best of ``repeats``."""
+    with the small and the full cost, best of ``repeats``.
+
+    Parameters
+    ----------
+    config, out
+        The resolved ``bench_identify`` config (plain dict, docs/experiments.md) and the run's
+        output folder.
+    """
     trajectory = read_trajectory(config["data_file"])
     settings = EASettings.from_config(config["ea"])
     repeats = int(config["repeats"])

@@ -22,7 +22,17 @@ from replication.progress import bar, progress
 
 def window_axes(window, tau_ref, n_grid):
     """Grid axes ``(K, tau)`` of a window: ``K: [lo, hi]`` and either ``tau_factor``
-    (linear, times ``tau_ref``) or ``tau`` (absolute, log-spaced with log-spaced K)."""
+    (linear, times ``tau_ref``) or ``tau`` (absolute, log-spaced with log-spaced K).
+
+    Parameters
+    ----------
+    window : dict
+        ``K`` and ``tau_factor`` or ``tau`` (``[low, high]``).
+    tau_ref : float
+        The reference tau (``tau_factor`` multiplies it).
+    n_grid : int
+        Points per axis.
+    """
     K_lo, K_hi = window["K"]
     check(K_lo < K_hi, f"window K={window['K']}: low >= high; expected low < high")
     if "tau_factor" in window:
@@ -35,7 +45,15 @@ def window_axes(window, tau_ref, n_grid):
 
 
 def cost_grid(cost, rest, Ks, taus):
-    """Cost on the grid, shape (len(taus), len(Ks)), rest lengths (3,) fixed."""
+    """Cost on the grid, shape (len(taus), len(Ks)), rest lengths (3,) fixed.
+
+    Parameters
+    ----------
+    cost : ClothCost
+    rest : (3,) ndarray
+        Rest lengths of the three families.
+    Ks, taus : 1-D ndarray
+    """
     KK, TT = np.meshgrid(Ks, taus)
     X = np.column_stack([np.repeat(rest[None, :], KK.size, axis=0), KK.ravel(), TT.ravel()])
     return cost(params_from_vectors(X)).reshape(KK.shape)
@@ -54,7 +72,14 @@ def _grid_summary(grid, Ks, taus, tau_ref):
 
 
 def landscapes(config, out):
-    """Runner of ``fig09_10``."""
+    """Runner of ``fig09_10``.
+
+    Parameters
+    ----------
+    config, out
+        The resolved ``fig09_10`` config (plain dict, docs/experiments.md) and the run's
+        output folder.
+    """
     settings = check_common(config)
     n_grid = int(config["grid"])
     check(n_grid >= 3, f"grid={n_grid}: expected at least 3 points per axis")

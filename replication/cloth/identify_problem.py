@@ -96,6 +96,14 @@ def random_population(space, size, rng, *, rest_spread):
     """Paper 3.3 initialisation: uniform in the bounds, rest lengths uniform within
     ``+-rest_spread`` (relative) of the observed mean lengths, clipped to the bounds.
 
+    Parameters
+    ----------
+    space : SearchSpace
+    size : int
+    rng : np.random.Generator
+    rest_spread : float
+        Relative spread of the initial rest lengths.
+
     Returns
     -------
     (size, n_var) ndarray
@@ -110,7 +118,14 @@ def random_population(space, size, rng, *, rest_spread):
 
 def cost_from_config(trajectory, cost_cfg):
     """The paper's cost (``cost_cfg.kind`` "small" or "full", or "frames" with an explicit
-    list ``cost_cfg.frames``) on ``trajectory``."""
+    list ``cost_cfg.frames``) on ``trajectory``.
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+    cost_cfg : dict
+        ``kind`` and ``frame`` / ``start``, ``window`` / ``frames`` (docs/experiments.md).
+    """
     kind = cost_cfg.get("kind", "small")
     if kind == "frames":
         given = cost_cfg.get("frames")
@@ -155,7 +170,17 @@ def residual_function(cost):
 
 
 def cloth_objective(cost, space, *, budget=None, with_residuals=False):
-    """The cost as an :class:`Objective` over ``space`` (counted, budgeted)."""
+    """The cost as an :class:`Objective` over ``space`` (counted, budgeted).
+
+    Parameters
+    ----------
+    cost : ClothCost
+    space : SearchSpace
+    budget : int, optional
+        Evaluations allowed (then ``BudgetExhausted``).
+    with_residuals : bool
+        Also give per-frame residuals (for least squares).
+    """
     def fun(X):
         return cost(params_from_vectors(X))
 
@@ -166,7 +191,13 @@ def cloth_objective(cost, space, *, budget=None, with_residuals=False):
 
 def truth_vector(trajectory, model="5"):
     """True parameter vector from ``trajectory.meta['true_params']`` (synthetic data only;
-    used to score, never to identify), or ``None``."""
+    used to score, never to identify), or ``None``.
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+    model : "5" or "18"
+    """
     true = trajectory.meta.get("true_params") if trajectory.meta else None
     if not true:
         return None
@@ -178,18 +209,36 @@ def truth_vector(trajectory, model="5"):
 
 
 def relative_errors(vector, truth):
-    """Signed relative errors ``vector / truth - 1`` per parameter."""
+    """Signed relative errors ``vector / truth - 1`` per parameter.
+
+    Parameters
+    ----------
+    vector, truth : (n_var,) array_like
+    """
     return np.asarray(vector, float) / np.asarray(truth, float) - 1.0
 
 
 def is_success(vector, truth, rtol):
-    """All parameters within ``rtol`` (relative) of the truth."""
+    """All parameters within ``rtol`` (relative) of the truth.
+
+    Parameters
+    ----------
+    vector, truth : (n_var,) array_like
+    rtol : float
+    """
     return bool(np.all(np.abs(relative_errors(vector, truth)) <= rtol))
 
 
 def named(vector, names, cost=None):
     """A parameter vector as ``{name: value}`` (plus ``cost``); 18-parameter vectors as
-    ``{rest: [6], k: [6], tau: [6]}`` (docs/results.md)."""
+    ``{rest: [6], k: [6], tau: [6]}`` (docs/results.md).
+
+    Parameters
+    ----------
+    vector : (5,) or (18,) array_like
+    names : sequence of str
+    cost : float, optional
+    """
     vector = np.asarray(vector, float)
     if len(names) == 18:
         out = {"rest": vector[0:6].tolist(), "k": vector[6:12].tolist(),

@@ -41,7 +41,16 @@ def data_files(config):
 
 
 def load_cases(config, *, model="5", cost=None):
-    """Read and validate every data file of ``config`` into :class:`Case` objects."""
+    """Read and validate every data file of ``config`` into :class:`Case` objects.
+
+    Parameters
+    ----------
+    config : dict
+        ``data.path`` or ``references``, ``cost``, ``bounds``.
+    model : "5" or "18"
+    cost : dict, optional
+        Cost settings instead of ``config["cost"]``.
+    """
     cases = []
     for label, path in data_files(config).items():
         trajectory = read_trajectory(path)
@@ -65,13 +74,28 @@ def check_common(config):
 
 
 def run_rng(seed, *keys):
-    """The generator of one run: from the config seed and the run's position."""
+    """The generator of one run: from the config seed and the run's position.
+
+    Parameters
+    ----------
+    seed : int
+        The config's seed.
+    *keys : int
+        The run's indices (case, optimiser, seed index...).
+    """
     return np.random.default_rng([int(seed), *[int(k) for k in keys]])
 
 
 def outcome(vector, truth, rtol):
     """"truth" (all within ``rtol``), "inactive-constraint valley" (tau above the truth by
-    more than 20%: the constraint is switched off) or "elsewhere"; None without truth."""
+    more than 20%: the constraint is switched off) or "elsewhere"; None without truth.
+
+    Parameters
+    ----------
+    vector : (n_var,) ndarray
+    truth : (n_var,) ndarray or None
+    rtol : float
+    """
     if truth is None:
         return None
     if problem.is_success(vector, truth, rtol):
@@ -83,7 +107,16 @@ def outcome(vector, truth, rtol):
 
 
 def paper_ea_run(case, settings, rng, *, rest_spread, budget=None):
-    """One run of the paper's EA on ``case``; returns (PaperEA, Objective)."""
+    """One run of the paper's EA on ``case``; returns (PaperEA, Objective).
+
+    Parameters
+    ----------
+    case : Case
+    settings : EASettings
+    rng : np.random.Generator
+    rest_spread : float
+    budget : int, optional
+    """
     objective = problem.cloth_objective(case.cost, case.space, budget=budget)
     initial = problem.random_population(case.space, settings.pop_size, rng,
                                         rest_spread=rest_spread)
@@ -91,7 +124,14 @@ def paper_ea_run(case, settings, rng, *, rest_spread, budget=None):
 
 
 def score(vector, case, rtol):
-    """Errors and outcome of an answer on ``case`` (empty without a known truth)."""
+    """Errors and outcome of an answer on ``case`` (empty without a known truth).
+
+    Parameters
+    ----------
+    vector : (n_var,) array_like
+    case : Case
+    rtol : float
+    """
     if case.truth is None:
         return {}
     errors = problem.relative_errors(vector, case.truth)
@@ -101,5 +141,12 @@ def score(vector, case, rtol):
 
 
 def population_rows(X, F, names):
-    """Final population as named rows with their cost, best first."""
+    """Final population as named rows with their cost, best first.
+
+    Parameters
+    ----------
+    X : (pop, n_var) ndarray
+    F : (pop,) ndarray
+    names : sequence of str
+    """
     return [problem.named(x, names, f) for x, f in zip(X, F)]

@@ -29,14 +29,33 @@ from replication.optim.objective import BudgetExhausted
 
 
 def regression_frames(n_frames, *, first, stride):
-    """Frames ``t`` (with ``t - 1 >= 0`` and ``t + 1`` in the data) used by the regression."""
+    """Frames ``t`` (with ``t - 1 >= 0`` and ``t + 1`` in the data) used by the regression.
+
+    Parameters
+    ----------
+    n_frames : int
+    first, stride : int
+    """
     return np.arange(max(first, 1), n_frames - 1, stride)
 
 
 def scan_tau(objective, base, indices, *, n_grid, refine_evals):
     """Stage 2 for one group of tau entries set to a common value: grid over the bounds
     (log-spaced), then a bounded scalar refinement between the grid neighbours of the
-    best point. The answer is read from the objective's best-so-far point."""
+    best point. The answer is read from the objective's best-so-far point.
+
+    Parameters
+    ----------
+    objective : Objective
+    base : (n_var,) ndarray
+        The other parameters, fixed.
+    indices : list of int
+        The tau entries set to the scanned value.
+    n_grid : int
+        Grid points.
+    refine_evals : int
+        Evaluations of the scalar refinement.
+    """
     indices = list(indices)
     low = objective.lower[indices].max()
     high = objective.upper[indices].min()
@@ -59,7 +78,13 @@ def scan_tau(objective, base, indices, *, n_grid, refine_evals):
 def tau_groups(model, n_var):
     """Groups of tau indices scanned together: all taus, then (18 parameters) each spring
     family's pair, then each type. A spring's clamp changes its particles' mean correction
-    (Jacobi pass), so taus of one family are coupled and are scanned jointly first."""
+    (Jacobi pass), so taus of one family are coupled and are scanned jointly first.
+
+    Parameters
+    ----------
+    model : "5" or "18"
+    n_var : int
+    """
     if model != "18":
         return [[n_var - 1]]
     first = n_var - N_TYPES

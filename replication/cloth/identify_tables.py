@@ -55,7 +55,14 @@ def _summary(records):
 
 
 def paper_ea_study(config, out):
-    """Runner of ``table1_2``: the paper's EA over ``n_seeds`` seeds per reference."""
+    """Runner of ``table1_2``: the paper's EA over ``n_seeds`` seeds per reference.
+
+    Parameters
+    ----------
+    config, out
+        The resolved ``table1_2`` config (plain dict, docs/experiments.md) and the run's
+        output folder.
+    """
     settings = check_common(config)
     cases = load_cases(config)
     table_label = str(config["table_reference"])

@@ -85,7 +85,19 @@ def _real(path, key, array):
 
 def load_npz(path, expected):
     """Every array of the ``.npz`` archive ``path``; one-line :class:`InputError` for a file
-    that is not one (a ``.npy`` file, a truncated archive, pickled objects, not UTF-8...)."""
+    that is not one (a ``.npy`` file, a truncated archive, pickled objects, not UTF-8...).
+
+    Parameters
+    ----------
+    path : str or Path
+    expected : str
+        What the file should hold, for the message (``"a cloth trajectory"``).
+
+    Returns
+    -------
+    dict
+        ``{key: ndarray}``.
+    """
     reason = None
     try:
         loaded = np.load(path, allow_pickle=False)
@@ -229,7 +241,14 @@ def read_trajectory(path):
 
 def write_npz_deterministic(path, arrays):
     """Write ``arrays`` (name -> array) as an uncompressed ``.npz`` with fixed zip times,
-    so that identical arrays always give identical bytes."""
+    so that identical arrays always give identical bytes.
+
+    Parameters
+    ----------
+    path : str or Path
+    arrays : dict
+        ``{name: array_like}``; written in key order.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp")
@@ -244,7 +263,13 @@ def write_npz_deterministic(path, arrays):
 
 
 def write_trajectory(path, trajectory):
-    """Write a :class:`Trajectory` as docs/data-formats.md says (deterministic bytes)."""
+    """Write a :class:`Trajectory` as docs/data-formats.md says (deterministic bytes).
+
+    Parameters
+    ----------
+    path : str or Path
+    trajectory : Trajectory
+    """
     arrays = {
         "positions": np.asarray(trajectory.positions, dtype=float),
         "dt": np.float64(trajectory.dt),
@@ -260,7 +285,18 @@ def write_trajectory(path, trajectory):
 
 
 def trajectory_from_rollout(positions, scene: Scene, *, meta=None, velocities=None):
-    """Wrap simulated positions (T, n*n, 3) as a :class:`Trajectory` of ``scene``."""
+    """Wrap simulated positions (T, n*n, 3) as a :class:`Trajectory` of ``scene``.
+
+    Parameters
+    ----------
+    positions : (T, n*n, 3) ndarray
+    scene : Scene
+        Gives ``n``, ``dt``, masses, gravity, damping and the pinned particles.
+    meta : dict, optional
+        Stored as the file's ``meta`` JSON (``true_params`` for synthetic data).
+    velocities : (T, n*n, 3) ndarray, optional
+        Stored when given; else derived from positions by the reader.
+    """
     n = scene.n
     positions = np.asarray(positions).reshape(-1, n, n, 3)
     mass = scene.mass.reshape(n, n)

@@ -101,7 +101,18 @@ def _step_into(x, v, rest, k, tau, extra, sa, sb, st, free, mass, gravity, dampi
 
 @njit(cache=True, parallel=True)
 def step_batch(x, v, rest, k, tau, extra, sa, sb, st, free, mass, gravity, damping, dt):
-    """One step for each row of a batch: x, v, extra (B, P, 3); rest, k, tau (B, 6)."""
+    """One step for each row of a batch: x, v, extra (B, P, 3); rest, k, tau (B, 6).
+
+    Parameters
+    ----------
+    x, v, extra : (B, P, 3) ndarray
+        Positions, velocities and external forces of each row.
+    rest, k, tau : (B, 6) ndarray
+        Per-type rest lengths, stiffnesses and critical elongation rates.
+    sa, sb, st, free, mass, gravity, damping, dt
+        The scene, as ``Scene.kernel_args()`` gives it: spring ends and types (S,), free
+        particles (P,) bool, masses (P,), gravity (3,), linear damping, time step.
+    """
     n_batch, n_particles = x.shape[0], x.shape[1]
     x_out = np.empty_like(x)
     v_out = np.empty_like(v)
@@ -118,7 +129,18 @@ def step_batch(x, v, rest, k, tau, extra, sa, sb, st, free, mass, gravity, dampi
 def rollout_batch(x0, v0, rest, k, tau, n_steps, sa, sb, st, free, mass, gravity,
                   damping, dt):
     """``n_steps`` steps from (x0, v0) (B, P, 3); returns positions and velocities
-    of shape (B, n_steps + 1, P, 3), frame 0 being the initial state."""
+    of shape (B, n_steps + 1, P, 3), frame 0 being the initial state.
+
+    Parameters
+    ----------
+    x0, v0 : (B, P, 3) ndarray
+        Initial positions and velocities.
+    rest, k, tau : (B, 6) ndarray
+    n_steps : int
+    sa, sb, st, free, mass, gravity, damping, dt
+        The scene, as ``Scene.kernel_args()`` gives it: spring ends and types (S,), free
+        particles (P,) bool, masses (P,), gravity (3,), linear damping, time step.
+    """
     n_batch, n_particles = x0.shape[0], x0.shape[1]
     xs = np.empty((n_batch, n_steps + 1, n_particles, 3))
     vs = np.empty((n_batch, n_steps + 1, n_particles, 3))
@@ -140,11 +162,23 @@ def one_step_errors(xs, vs, frames, rest, k, tau, extra, dtc, sa, sb, st, free, 
                     gravity, damping, dt):
     """Paper 3.3: predict frame t+1 from the recorded state at frame t.
 
-    xs, vs : (T, P, 3) recorded positions and velocities; frames : (F,) values of t;
-    rest, k, tau : (B, 6); extra : (EB, EF, P, 3) external forces with EB in {1, B} and
-    EF in {1, F} (a size-1 axis is shared). Returns e : (B, F) with
-    ``e = sum_p |x^_p - x_p|^2 + dtc^2 |v^_p - v_p|^2`` (not yet normalised).
-    A non-finite prediction gives ``inf``.
+    Returns ``e`` : (B, F) with ``e = sum_p |x^_p - x_p|^2 + dtc^2 |v^_p - v_p|^2`` (not
+    yet normalised); a non-finite prediction gives ``inf``.
+
+    Parameters
+    ----------
+    xs, vs : (T, P, 3) ndarray
+        Recorded positions and velocities.
+    frames : (F,) int ndarray
+        Values of ``t``.
+    rest, k, tau : (B, 6) ndarray
+    extra : (EB, EF, P, 3) ndarray
+        External forces; ``EB`` in {1, B}, ``EF`` in {1, F} (a size-1 axis is shared).
+    dtc : float
+        Weight of velocity errors.
+    sa, sb, st, free, mass, gravity, damping, dt
+        The scene, as ``Scene.kernel_args()`` gives it: spring ends and types (S,), free
+        particles (P,) bool, masses (P,), gravity (3,), linear damping, time step.
     """
     n_batch = rest.shape[0]
     n_frames = frames.shape[0]

@@ -19,7 +19,14 @@ DEFAULT_PINNED = ((0, 0), (0, DEFAULT_N - 1))
 
 
 def spacing(n=DEFAULT_N, side=DEFAULT_SIDE):
-    """Grid spacing ``h = side / (n - 1)``."""
+    """Grid spacing ``h = side / (n - 1)``.
+
+    Parameters
+    ----------
+    n : int
+        Particles per side.
+    side : float
+    """
     return side / (n - 1)
 
 
@@ -52,7 +59,13 @@ def springs(n=DEFAULT_N):
 
 
 def flat_rest_positions(n=DEFAULT_N, side=DEFAULT_SIDE):
-    """The contract's initial state: flat sheet ``x = (j*h, i*h, 0)``, shape ``(n*n, 3)``."""
+    """The contract's initial state: flat sheet ``x = (j*h, i*h, 0)``, shape ``(n*n, 3)``.
+
+    Parameters
+    ----------
+    n : int
+    side : float
+    """
     h = spacing(n, side)
     i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
     x = np.zeros((n, n, 3))

@@ -58,7 +58,21 @@ class Scene:
 
 def make_scene(n=DEFAULT_N, *, dt=CONTRACT_DT, mass=CONTRACT_MASS, gravity=CONTRACT_GRAVITY,
                damping=0.0, pinned=None):
-    """Build a :class:`Scene`; defaults are the contract's."""
+    """Build a :class:`Scene`; defaults are the contract's.
+
+    Parameters
+    ----------
+    n : int
+        Particles per side (``n x n`` sheet).
+    dt : float
+        Time step.
+    mass : float or (n, n) array_like
+    gravity : (3,) array_like
+    damping : float
+        Linear damping ``c`` (0 in the contract).
+    pinned : (k, 2) array_like, optional
+        ``(i, j)`` of pinned particles; default the contract's two top corners.
+    """
     if pinned is None:
         pinned = ((0, 0), (0, n - 1)) if n != DEFAULT_N else DEFAULT_PINNED
     pinned = np.asarray(pinned, dtype=np.int64).reshape(-1, 2)
@@ -106,12 +120,33 @@ def params_from_vectors(X):
 
 
 def reference_vector(tau, *, K=4.0, n=DEFAULT_N, side=DEFAULT_SIDE):
-    """The contract's 5-parameter reference ``(h, h*sqrt 2, 2h, K, tau)``."""
+    """The contract's 5-parameter reference ``(h, h*sqrt 2, 2h, K, tau)``.
+
+    Parameters
+    ----------
+    tau : float
+    K : float
+    n : int
+    side : float
+        Side of the sheet; ``h = side / (n - 1)``.
+
+    Returns
+    -------
+    (5,) ndarray
+    """
     return np.concatenate([reference_rest_lengths(spacing(n, side)), [K, tau]])
 
 
 def initial_state(scene, pop=1, side=DEFAULT_SIDE):
-    """The flat initial sheet at rest, repeated ``pop`` times: ``x, v`` of (pop, P, 3)."""
+    """The flat initial sheet at rest, repeated ``pop`` times: ``x, v`` of (pop, P, 3).
+
+    Parameters
+    ----------
+    scene : Scene
+    pop : int
+        Copies (population size).
+    side : float
+    """
     x0 = flat_rest_positions(scene.n, side)
     x = np.repeat(x0[None], pop, axis=0)
     return x, np.zeros_like(x)
@@ -154,6 +189,15 @@ def step(x, v, params, scene, extra_force=None):
 
 def simulate(params, scene, n_steps, x0=None, v0=None):
     """Roll the model out for ``n_steps`` steps.
+
+    Parameters
+    ----------
+    params : ClothParams
+        ``(pop, 6)`` rest lengths, stiffnesses and taus (:func:`params_from_vectors`).
+    scene : Scene
+    n_steps : int
+    x0, v0 : (pop or 1, n*n, 3) ndarray, optional
+        Initial state; default the flat sheet at rest (:func:`initial_state`).
 
     Returns
     -------

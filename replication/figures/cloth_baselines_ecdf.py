@@ -16,7 +16,22 @@ def _ecdf(ax, hits, budget, label):
 
 
 def plot(summary, checkpoints, budget, *, ecdf_name, convergence_name, figure_dir="figures"):
-    """``summary[data][optimiser]`` with ``evals_to_success`` and ``median_curve``."""
+    """``summary[data][optimiser]`` with ``evals_to_success`` and ``median_curve``.
+
+    Parameters
+    ----------
+    summary : dict
+        ``summary[data][optimiser]``: ``evals_to_success`` (per seed, None when never) and
+        ``median_curve`` (best cost at each checkpoint).
+    checkpoints : list of int
+        Evaluation counts of the curves.
+    budget : int
+        The largest budget (x range).
+    ecdf_name, convergence_name : str
+        File names of the two figures.
+    figure_dir : str or Path
+        Folder of the file (a relative one is inside the project).
+    """
     fig, axes = new_figure(len(summary))
     for ax, (label, by_opt) in zip(axes[0], summary.items()):
         for name, s in by_opt.items():

@@ -6,7 +6,16 @@ from replication.figures.cloth_common import new_figure, save
 
 
 def plot(runs, *, out_name, figure_dir="figures"):
-    """``runs``: ``{label: [record with 'history' (best cost per generation), 'success']}``."""
+    """``runs``: ``{label: [record with 'history' (best cost per generation), 'success']}``.
+
+    Parameters
+    ----------
+    runs : dict
+    out_name : str
+        File name.
+    figure_dir : str or Path
+        Folder of the file (a relative one is inside the project).
+    """
     fig, axes = new_figure(len(runs))
     for ax, (label, records) in zip(axes[0], runs.items()):
         for record in records:

@@ -12,7 +12,15 @@ import numpy as np  # noqa: E402
 
 
 def plot_blind(result, path):
-    """Confusion matrix (hidden vs called) and gap before/after per dataset; returns path."""
+    """Confusion matrix (hidden vs called) and gap before/after per dataset; returns path.
+
+    Parameters
+    ----------
+    result : dict
+        The ``discrepancy_blind`` result.
+    path : str or Path
+        The PNG written.
+    """
     summary = result["summary"]
     hidden, calls = summary["hidden"], summary["calls"]
     matrix = np.array([[summary["confusion"][e][c] for c in calls] for e in hidden])

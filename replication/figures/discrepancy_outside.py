@@ -28,7 +28,16 @@ def _snr_bins(rows, edges):
 def plot_outside(result, path):
     """Three panels: exact-answer rate against the weakest effect's SNR (datasets as
     points, noise-free ones at the right edge), held-out gap before/after, and the exact
-    rate per kind above the detection limit. Returns the path."""
+    rate per kind above the detection limit. Returns the path.
+
+    Parameters
+    ----------
+    result : dict
+        The ``discrepancy_outside`` result: ``datasets`` (one row per dataset) and
+        ``summary``.
+    path : str or Path
+        The PNG written.
+    """
     rows = result["datasets"]
     summary = result["summary"]
     limit = summary["detection_snr"]

@@ -12,7 +12,14 @@ import numpy as np  # noqa: E402
 
 
 def plot_where(result, out_dir):
-    """Residual map over the mesh, structure over time, and the held-out gap; returns paths."""
+    """Residual map over the mesh, structure over time, and the held-out gap; returns paths.
+
+    Parameters
+    ----------
+    result : dict
+        The workflow's result (``where``, ``gap``, ``settings``).
+    out_dir : str or Path
+    """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     where = result["where"]

@@ -12,6 +12,16 @@ def draw(path, frame, flow, *, step=12, method="TV-L1"):
     """Draw ``frame`` (H, W) with the arrows of ``flow`` (2, H, W) = (u along x, v along y).
 
     Arrows are drawn every ``step`` pixels, magnified 4x; the file is written to ``path``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The PNG written.
+    frame : (H, W) ndarray
+    flow : (2, H, W) ndarray
+    step : int
+    method : str
+        Name of the flow method, for the title.
     """
     u, v = flow
     rows, cols = np.mgrid[step // 2: frame.shape[0]: step, step // 2: frame.shape[1]: step]

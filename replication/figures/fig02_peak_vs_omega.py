@@ -10,7 +10,15 @@ from replication.figures.style import save
 
 def draw(path, omega, peak, *, best=None, refined=None, truth=None):
     """Plot ``peak`` (m,) against ``omega`` (m,) with vertical marks for the best peak,
-    the refined and the true omega (each optional); write to ``path``."""
+    the refined and the true omega (each optional); write to ``path``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The PNG written.
+    omega, peak : (m,) array_like
+    best, refined, truth : float, optional
+    """
     fig, ax = plt.subplots(figsize=(6, 3.5), dpi=100)
     ax.plot(omega, peak, ".-", color="black", lw=1, ms=3, label="peak of F(omega)")
     for value, colour, label in ((best, "tab:red", "best peak (paper)"),

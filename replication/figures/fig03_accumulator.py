@@ -9,7 +9,19 @@ from replication.figures.style import save
 
 def draw(path, acc, extent, *, peak, truth=None, omega=None):
     """Show ``acc`` (ny, nx) over ``extent`` (x_min, x_max, y_max, y_min) with the peak
-    ``(xi, eta)`` and the true centre (optional); write to ``path``."""
+    ``(xi, eta)`` and the true centre (optional); write to ``path``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The PNG written.
+    acc : (ny, nx) ndarray
+    extent : tuple
+    peak : (2,) tuple
+    truth : (2,) tuple, optional
+    omega : float, optional
+        For the title.
+    """
     fig, ax = plt.subplots(figsize=(5, 5), dpi=100)
     ax.imshow(acc, cmap="inferno", extent=extent, interpolation="nearest")
     ax.plot(*peak, "+", color="cyan", ms=14, mew=1.5, label=f"peak ({peak[0]:g}, {peak[1]:g})")

@@ -10,7 +10,15 @@ from replication.figures.style import save
 def draw(path, closeness, *, region=None, label_outline=None):
     """Show ``closeness`` (H, W) in [0, 1] (1 = verifies the equation, 0 = does not or has
     too small a gradient), the detected blob ``region`` (H, W bool) and the true object
-    outline ``label_outline`` (H, W bool) if given; write to ``path``."""
+    outline ``label_outline`` (H, W bool) if given; write to ``path``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The PNG written.
+    closeness : (H, W) ndarray
+    region, label_outline : (H, W) bool ndarray, optional
+    """
     fig, ax = plt.subplots(figsize=(5, 5), dpi=100)
     ax.imshow(closeness, cmap="gray", vmin=0, vmax=1, interpolation="nearest")
     if region is not None:

@@ -19,6 +19,15 @@ def draw(path, frame, discs, rotating, *, tick_scale=8.0):
     ``rotating`` (n,) bool marks discs kept as rotating (solid yellow) against those
     taken for the static background (dashed cyan). Velocity ticks are
     ``tick_scale`` times the velocity (pixels/frame).
+
+    Parameters
+    ----------
+    path : str or Path
+        The PNG written.
+    frame : (H, W) ndarray
+    discs : (n, 6) ndarray
+    rotating : (n,) bool ndarray
+    tick_scale : float
     """
     height, width = frame.shape
     fig, ax = plt.subplots(figsize=(5.5, 5.5), dpi=100)

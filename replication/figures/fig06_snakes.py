@@ -13,6 +13,14 @@ def draw(path, frame, contours):
 
     ``contours`` is a list of ``((x, y), rho)``: the centre and the radii ``rho`` (K,) of
     ``K`` equal sectors, sector ``k`` starting at angle ``-pi + 2 pi k / K`` (y down).
+
+    Parameters
+    ----------
+    path : str or Path
+        The PNG written.
+    frame : (H, W) ndarray
+        Background image.
+    contours : list of ((x, y), (K,) ndarray)
     """
     height, width = frame.shape
     fig, ax = plt.subplots(figsize=(5.5, 5.5), dpi=100)

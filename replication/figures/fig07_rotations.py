@@ -14,6 +14,14 @@ def draw(path, frame, panels, *, truth=()):
 
     ``panels`` is a list of ``{acc (ny, nx), extent (x0, x1, y1, y0), xi, eta, omega,
     mask (H, W) bool}``; ``truth`` a list of true centres ``(xi, eta)`` (drawn as x).
+
+    Parameters
+    ----------
+    path : str or Path
+        The PNG written.
+    frame : (H, W) ndarray
+    panels : list of dict
+    truth : sequence of tuple
     """
     height, width = frame.shape
     fig, (left, right) = plt.subplots(1, 2, figsize=(10, 5), dpi=100)

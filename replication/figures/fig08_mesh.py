@@ -31,7 +31,18 @@ def _draw_springs(ax, x, a, b, kind, types, colour, bend):
 def draw(path, *, positions, a, b, kind, pinned, n, zoom):
     """Draw the mesh (left) and a ``zoom x zoom`` corner with every spring (right).
 
-    positions : (n*n, 3) rest positions; a, b, kind : (S,) springs; pinned : (k, 2).
+    Parameters
+    ----------
+    path : str or Path
+        The PNG written.
+    positions : (n*n, 3) ndarray
+        Rest positions.
+    a, b, kind : (S,) int ndarray
+        Spring ends and types.
+    pinned : (k, 2) int ndarray
+    n : int
+    zoom : int
+        Particles per side of the corner shown.
     """
     fig, (left, right) = plt.subplots(1, 2, figsize=(10, 5))
     x = positions[:, :2]

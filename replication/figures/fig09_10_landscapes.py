@@ -10,7 +10,19 @@ from replication.figures.cloth_common import new_figure, save
 
 def plot(panels, path, *, reference, title, out_name, figure_dir="figures"):
     """``panels[f"{cost}/{window}"]`` with ``K, tau, log, cost`` grids; ``path`` rows
-    ``(K, tau, best cost)`` per generation; ``reference`` the true ``(K, tau)``."""
+    ``(K, tau, best cost)`` per generation; ``reference`` the true ``(K, tau)``.
+
+    Parameters
+    ----------
+    panels : dict
+    path : list of (3,) sequence
+    reference : (2,) tuple
+    title : str
+    out_name : str
+        File name.
+    figure_dir : str or Path
+        Folder of the file (a relative one is inside the project).
+    """
     names = list(panels)
     costs = list(dict.fromkeys(name.split("/")[0] for name in names))
     windows = list(dict.fromkeys(name.split("/")[1] for name in names))

@@ -39,7 +39,17 @@ def _limits(columns):
 def draw(path, *, columns, titles, frames, n, dt):
     """Rows are the given frame indices, columns the runs.
 
-    columns : list of (T, n*n, 3) position arrays; titles : column titles.
+    Parameters
+    ----------
+    path : str or Path
+        The PNG written.
+    columns : list of (T, n*n, 3) ndarray
+        Positions of each run.
+    titles : list of str
+    frames : list of int
+    n : int
+    dt : float
+        Time between frames (row labels).
     """
     limits = _limits(columns)
     colours = ["black", "tab:blue", "tab:red", "tab:green"]
@@ -61,7 +71,18 @@ def draw(path, *, columns, titles, frames, n, dt):
 
 
 def animate(path, *, columns, titles, frames, n, dt):
-    """An animated GIF of the columns side by side over ``frames``."""
+    """An animated GIF of the columns side by side over ``frames``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The GIF written.
+    columns : list of (T, n*n, 3) ndarray
+    titles : list of str
+    frames : list of int
+    n : int
+    dt : float
+    """
     limits = _limits(columns)
     colours = ["black", "tab:blue", "tab:red", "tab:green"]
     images = []

@@ -8,7 +8,13 @@ SAVE_OPTIONS = {"dpi": 110, "metadata": {"Software": None}}
 
 
 def save(fig, path):
-    """Save ``fig`` as PNG without timestamps and close it; returns the path as str."""
+    """Save ``fig`` as PNG without timestamps and close it; returns the path as str.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+    path : str or Path
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, **SAVE_OPTIONS)

@@ -104,7 +104,16 @@ def residual_maps(data, motions, *, cap=1.0):
 
 def smoothed_residuals(maps, weight, sigma):
     """Normalised convolution of ``maps`` (M, H, W) with the pixel weights ``weight``
-    (H, W), 0 for pixels without a gradient."""
+    (H, W), 0 for pixels without a gradient.
+
+    Parameters
+    ----------
+    maps : (M, H, W) ndarray
+        One residual map per hypothesis.
+    weight : (H, W) ndarray
+    sigma : float
+        Gaussian neighbourhood, pixels.
+    """
     total = ndimage.gaussian_filter(weight, sigma)
     out = np.stack([ndimage.gaussian_filter(weight * m, sigma) for m in maps])
     return out / np.maximum(total, 1e-12)
@@ -112,7 +121,17 @@ def smoothed_residuals(maps, weight, sigma):
 
 def label_pixels(smoothed, used, margin):
     """Step 3: ``labels`` (H, W) int (``k >= 1`` object, 0 static, -1 undecided or no
-    gradient) and ``static`` (H, W) bool, the confidently static pixels."""
+    gradient) and ``static`` (H, W) bool, the confidently static pixels.
+
+    Parameters
+    ----------
+    smoothed : (1 + K, H, W) ndarray
+        ``S_h`` of the static hypothesis (0) and of each object.
+    used : (H, W) bool ndarray
+        Pixels with a gradient.
+    margin : float
+        How much lower the best ``S_h`` must be than the second for a decision.
+    """
     order = np.sort(smoothed, axis=0)
     best = np.argmin(smoothed, axis=0)
     clear = (order[1] - order[0]) >= margin if smoothed.shape[0] > 1 else np.ones_like(used)
@@ -131,6 +150,18 @@ def fill_undecided(labels, valid, n_objects, *, reach=2, share=0.6, flat=None):
     flat patches are joined first, on their own, then the remaining undecided patches: an
     object's outer edge can be undecided (a circular edge turning about its centre has no
     normal flow), and would otherwise connect a flat face inside to the outside.
+
+    Parameters
+    ----------
+    labels : (H, W) int ndarray
+        From :func:`label_pixels`.
+    valid : (H, W) bool ndarray
+        Pixels away from the border.
+    n_objects : int
+    reach : int
+        Pixels.
+    share : float
+    flat : (H, W) bool ndarray, optional
 
     Returns
     -------
@@ -169,7 +200,20 @@ def _disc(radius):
 
 def object_mask(labels, static, k, snake_mask, *, closing=3, min_overlap=0.5):
     """Step 4 for object ``k``: its (H, W) bool mask (computed within the bounding box of
-    the object's labels plus a margin, which gives the same result faster)."""
+    the object's labels plus a margin, which gives the same result faster).
+
+    Parameters
+    ----------
+    labels : (H, W) int ndarray
+    static : (H, W) bool ndarray
+    k : int
+        The object's label (>= 1).
+    snake_mask : (H, W) bool ndarray
+        The object's snake region.
+    closing : int
+        Disc radius of the morphological closing, pixels.
+    min_overlap : float
+    """
     full = np.zeros(labels.shape, dtype=bool)
     rows, cols = np.nonzero(labels == k)
     if rows.size == 0:
@@ -193,7 +237,16 @@ def object_mask(labels, static, k, snake_mask, *, closing=3, min_overlap=0.5):
 
 
 def smoothed_hypotheses(data, objects, settings):
-    """Steps 1-2: ``S_h`` (1 + len(objects), H, W) and the pixels with a gradient (H, W)."""
+    """Steps 1-2: ``S_h`` (1 + len(objects), H, W) and the pixels with a gradient (H, W).
+
+    Parameters
+    ----------
+    data : replication.motion.disc_ea.DiscData
+    objects : list of dict
+        ``xi, eta, omega`` of each object.
+    settings : dict
+        :data:`DEFAULTS` keys.
+    """
     motions = [(o["xi"], o["eta"], o["omega"]) for o in objects]
     used = data.used.any(axis=0)
     maps = residual_maps(data, motions, cap=settings["cap"])
@@ -210,6 +263,14 @@ def unexplained_regions(data, objects, settings, smoothed=None):
     least ``rescue_area`` pixels, at most ``rescue`` of them, largest first.
 
     ``smoothed``: :func:`smoothed_hypotheses` of the same objects, if already computed.
+
+    Parameters
+    ----------
+    data : replication.motion.disc_ea.DiscData
+    objects : list of dict
+    settings : dict
+        :data:`DEFAULTS` keys.
+    smoothed : tuple, optional
 
     Returns
     -------

@@ -118,6 +118,14 @@ def direct_least_squares(frames, *, sigma=1.5, relative_threshold=0.15):
     ``omega (Iy x - Ix y) + p Ix + q Iy = -It``. No region is selected, so the static
     background takes part, as it would in a naive use of the equation.
 
+    Parameters
+    ----------
+    frames : (T, H, W) ndarray
+    sigma : float
+        Pre-smoothing, pixels.
+    relative_threshold : float
+        Gradient threshold (:func:`gradient_threshold`).
+
     Returns
     -------
     dict
@@ -140,6 +148,12 @@ def irc_cost(pixels, *, tau=2.0):
     ``d`` is the distance (pixels) from ``(xi, eta)`` to the pixel's IRC line (the paper's
     2.3 residual normalised by the gradient, truncated so the background does not
     dominate): a continuous form of the accumulator's peak. ``omega = 0`` scores ``tau^2``.
+
+    Parameters
+    ----------
+    pixels : PixelDerivatives
+    tau : float
+        Truncation distance, pixels.
     """
     x, y, gx, gy, gt = pixels.x, pixels.y, pixels.gx, pixels.gy, pixels.gt
     norm = np.hypot(gx, gy)

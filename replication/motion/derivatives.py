@@ -48,7 +48,14 @@ class PixelDerivatives:
 
 
 def smooth(frame, sigma):
-    """Gaussian smoothing of one frame ``(H, W)``; ``sigma = 0`` returns a float copy."""
+    """Gaussian smoothing of one frame ``(H, W)``; ``sigma = 0`` returns a float copy.
+
+    Parameters
+    ----------
+    frame : (H, W) ndarray
+    sigma : float
+        Pixels.
+    """
     frame = np.asarray(frame, dtype=float)
     if sigma <= 0:
         return frame.copy()
@@ -96,6 +103,14 @@ def gradient_threshold(gradient_norm, valid, *, relative):
 
     Relative to the image's own strong gradients, so the same setting works for 8-bit,
     16-bit and float data of any scale.
+
+    Parameters
+    ----------
+    gradient_norm : (H, W) ndarray
+    valid : (H, W) bool ndarray
+        Pixels away from the border.
+    relative : float
+        Fraction of the 99th percentile.
     """
     if not valid.any():
         height, width = gradient_norm.shape

@@ -214,6 +214,15 @@ def disc_cost(pop, data, settings):
     rotation than by no motion at all (:func:`rotating_discs`) gets the worst cost
     ``alpha cap + beta``: otherwise small discs of the static background, which fit a fast
     rotation about their own centre, fill the kept 20%.
+
+    Parameters
+    ----------
+    pop : (N, 3) ndarray
+        Discs ``(x, y, r)``.
+    data : replication.motion.disc_ea.DiscData
+    settings : dict
+        The cost settings: ``cap``, ``min_pixels``, ``R``, ``alpha``, ``beta``, and
+        ``reject_static`` with ``motion_min``, ``motion_ratio``.
     """
     stats = disc_statistics(pop, data, cap=settings["cap"])
     residual = np.where(stats["pixels"] < settings["min_pixels"], settings["cap"],

@@ -373,7 +373,15 @@ def read_sequence(path):
 
 def read_manifest_sequences(path, maker):
     """The ``sequences`` of a data folder's ``manifest.json`` (written by ``replicate
-    experiment=MAKER``): ``{name: {"path": str, "role": str, ...}}``, checked."""
+    experiment=MAKER``): ``{name: {"path": str, "role": str, ...}}``, checked.
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``manifest.json``.
+    maker : str
+        The experiment that writes it, for the message.
+    """
     path = Path(path)
     expected = f"the manifest written by `replicate experiment={maker}`"
     if not path.is_file():
@@ -396,7 +404,17 @@ def read_manifest_sequences(path, maker):
 
 
 def write_sequence_npz(path, frames, *, labels=None, truth=None):
-    """Write a sequence as one deterministic ``.npz`` (float32 frames, uint8 labels)."""
+    """Write a sequence as one deterministic ``.npz`` (float32 frames, uint8 labels).
+
+    Parameters
+    ----------
+    path : str or Path
+    frames : (T, H, W) array_like
+    labels : (T, H, W) array_like, optional
+        Integer labels (0 = background).
+    truth : dict, optional
+        Stored as a JSON string.
+    """
     arrays = {"frames": np.asarray(frames, dtype=np.float32)}
     if labels is not None:
         arrays["labels"] = np.asarray(labels, dtype=np.uint8)
@@ -408,7 +426,17 @@ def write_sequence_npz(path, frames, *, labels=None, truth=None):
 def write_sequence_folder(folder, frames, *, labels=None, truth=None, bits=8):
     """Write a sequence as a folder of grey PNG frames (``frame_000.png``...), label PNGs
     (``labels_000.png``...) and ``truth.json``; intensities in ``[0, 1]`` are rounded to
-    ``bits`` (8 or 16) bits. Returns the written paths."""
+    ``bits`` (8 or 16) bits. Returns the written paths.
+
+    Parameters
+    ----------
+    folder : str or Path
+    frames : (T, H, W) array_like
+        Intensities in ``[0, 1]``.
+    labels : (T, H, W) array_like, optional
+    truth : dict, optional
+    bits : 8 or 16
+    """
     from PIL import Image
 
     folder = Path(folder)

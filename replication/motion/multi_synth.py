@@ -19,7 +19,14 @@ SHAPE_KEYS = ("center", "r_inner", "r_outer", "gap_deg", "gap_dir_deg")
 
 
 def check_object(where, item):
-    """Refuse an object spec without ``center``, ``omega`` or ``shape``, or a bad one."""
+    """Refuse an object spec without ``center``, ``omega`` or ``shape``, or a bad one.
+
+    Parameters
+    ----------
+    where : str
+        Name of the spec, for the message.
+    item : dict
+    """
     for key in ("center", "omega", "shape"):
         check(key in item, f"{where}: no '{key}'; expected center [xi, eta], omega "
               "(rad/frame) and shape {center, r_inner, r_outer, gap_deg}")

@@ -111,6 +111,16 @@ def sequential_ransac(points, flow, settings, rng):
     (:func:`replication.motion.baselines.rigid_fit`), removes them and starts again, until
     fewer than ``min_inliers`` points follow the best rotation or ``max_models`` are found.
 
+    Parameters
+    ----------
+    points : (N, 2) ndarray
+        ``(x, y)`` of the flow vectors.
+    flow : (N, 2) ndarray
+        ``(u, v)`` per point, pixels/frame.
+    settings : dict
+        ``samples``, ``tolerance``, ``min_inliers``, ``max_models``...
+    rng : np.random.Generator
+
     Returns
     -------
     list of dict

@@ -39,6 +39,12 @@ def make_data(config, out):
     Sequence ``k`` (config order) draws textures and noise from ``default_rng([seed, k])``,
     so the bytes depend only on the config and the seed. The manifest holds the config and
     the sha256 of every file.
+
+    Parameters
+    ----------
+    config, out
+        The resolved ``motion_multi_data`` config (plain dict, docs/experiments.md) and the run's
+        output folder.
     """
     items = list(config.get("sequences", {}).items())
     check(len(items) > 0, "sequences: empty; expected at least one sequence")
@@ -133,7 +139,13 @@ def _load(config):
 
 
 def write_mask(path, mask):
-    """One object's mask as an 8-bit PNG (255 inside, 0 outside)."""
+    """One object's mask as an 8-bit PNG (255 inside, 0 outside).
+
+    Parameters
+    ----------
+    path : str or Path
+    mask : (H, W) bool ndarray
+    """
     from PIL import Image
 
     Image.fromarray(np.where(mask, 255, 0).astype(np.uint8)).save(path, compress_level=6)
@@ -183,6 +195,12 @@ def segment_sequence(config, out):
 
     ``data.path`` null means the configured ``default_data`` and the figures go to
     ``figure_dir`` (``figures/``); for any other sequence they go to ``out/figures``.
+
+    Parameters
+    ----------
+    config, out
+        The resolved ``segment_multi`` config (plain dict, docs/experiments.md) and the run's
+        output folder.
     """
     from replication.motion import segmentation
 
@@ -298,6 +316,12 @@ def study(config, out):
 
     Run ``s`` of a method draws from ``default_rng([seed, sequence index, s])``; the static
     sequence (role ``static``) counts false regions only.
+
+    Parameters
+    ----------
+    config, out
+        The resolved ``segment_study`` config (plain dict, docs/experiments.md) and the run's
+        output folder.
     """
     from replication.motion import segmentation
     from replication.motion.segment_baselines import FLOW_DEFAULTS
@@ -353,7 +377,14 @@ def study(config, out):
 
 
 def benchmark(config, out):
-    """Wall time of whole pipeline runs on one sequence (after a warm-up run), by step."""
+    """Wall time of whole pipeline runs on one sequence (after a warm-up run), by step.
+
+    Parameters
+    ----------
+    config, out
+        The resolved ``bench_segment`` config (plain dict, docs/experiments.md) and the run's
+        output folder.
+    """
     from replication.motion import segmentation
 
     settings = segmentation.settings_from(config.get("method"))

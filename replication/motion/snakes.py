@@ -89,7 +89,13 @@ def sector_profiles(score, x, y, *, n_sectors=64, rho_max=120):
 
 
 def stiffness_energy(rho, kappa):
-    """``kappa * sum_k (rho_{k+1} - rho_k)^2`` of a closed radial contour ``rho`` (K,)."""
+    """``kappa * sum_k (rho_{k+1} - rho_k)^2`` of a closed radial contour ``rho`` (K,).
+
+    Parameters
+    ----------
+    rho : (K,) ndarray
+    kappa : float
+    """
     return kappa * float(np.sum((np.roll(rho, -1) - rho) ** 2))
 
 
@@ -177,7 +183,14 @@ def inflate(cumulative, rho0, *, kappa=0.05, steps=(8, 4, 2, 1), iterations=20,
 
 
 def region_mask(shape, x, y, rho):
-    """Pixels inside the radial contour ``rho`` (K,) centred on ``(x, y)``, ``(H, W)`` bool."""
+    """Pixels inside the radial contour ``rho`` (K,) centred on ``(x, y)``, ``(H, W)`` bool.
+
+    Parameters
+    ----------
+    shape : (H, W)
+    x, y : float
+    rho : (K,) ndarray
+    """
     height, width = shape
     n_sectors = rho.size
     rows, cols = np.mgrid[0:height, 0:width].astype(float)
@@ -191,6 +204,17 @@ def radial_snake(data, disc, *, tolerance=0.3, ambiguous=0.15, empty_cost=0.2,
                  ambiguous_cost=0.0, n_sectors=64, rho_max=120, kappa=0.05,
                  steps=(8, 4, 2, 1), iterations=20, deflate=False):
     """One disc ``(x, y, r, xi, eta, omega)`` refined into a region (paper 2.3.3).
+
+    Parameters
+    ----------
+    data : replication.motion.disc_ea.DiscData
+    disc : (6,) array_like
+    tolerance, ambiguous, empty_cost, ambiguous_cost : float
+        The evidence of :func:`support`.
+    n_sectors, rho_max : int
+        As :func:`sector_profiles`.
+    kappa, steps, iterations, deflate
+        As :func:`inflate`.
 
     Returns
     -------

@@ -71,7 +71,14 @@ def photo_texture(name, shape, *, low=0.1, high=0.9, blur=1.0):
 
 
 def make_texture(spec, shape, *, rng):
-    """Texture from a config ``spec``: ``{kind: procedural, scale}`` or ``{kind: NAME}``."""
+    """Texture from a config ``spec``: ``{kind: procedural, scale}`` or ``{kind: NAME}``.
+
+    Parameters
+    ----------
+    spec : dict
+    shape : (H, W)
+    rng : np.random.Generator
+    """
     kind = spec.get("kind", "procedural")
     if kind == "procedural":
         return procedural_texture(shape, rng=rng, scale=float(spec.get("scale", 2.0)),
@@ -219,6 +226,12 @@ def degrade(frames, *, noise_sigma=0.0, bits=None, rng=None):
 
 def make_sequence(spec, *, rng):
     """A sequence from one config ``spec`` (see ``configs/experiment/motion_data.yaml``).
+
+    Parameters
+    ----------
+    spec : dict
+    rng : np.random.Generator
+        Draws the textures and the noise.
 
     Returns
     -------

@@ -156,5 +156,11 @@ class Objective:
 
 
 def fixed_budget_values(trace, budgets):
-    """Best-so-far values of ``trace`` at each evaluation count in ``budgets``."""
+    """Best-so-far values of ``trace`` at each evaluation count in ``budgets``.
+
+    Parameters
+    ----------
+    trace : Trace
+    budgets : iterable of int
+    """
     return [trace.best_at(b) for b in budgets]

@@ -59,6 +59,13 @@ def make_algorithm(name, *, x0=None, options=None):
 
     ``x0`` : (n_var,) start point for CMA-ES and Nelder-Mead (they otherwise spend about
     20 evaluations sampling one).
+
+    Parameters
+    ----------
+    name : str
+    x0 : (n_var,) ndarray, optional
+    options : dict, optional
+        Keyword arguments of the pymoo algorithm.
     """
     options = dict(options or {})
     if name == "ga":

@@ -16,7 +16,8 @@ How it shows depends on the mode (:func:`set_mode`; the ``progress`` config key,
 - ``plain``: a line ``[  12.3s] seeds 12/100 (3.1/s, 29 s left)`` at most every
   :data:`PLAIN_INTERVAL` seconds, and the last one, ``seeds 100/100 in 32 s (3.1/s)``;
 - ``none``: nothing, neither bars nor :func:`progress` lines;
-- ``auto`` (the default): ``bar`` when stderr is a terminal, ``plain`` otherwise.
+- ``auto`` (the default): ``bar`` when stderr is a terminal (of non-zero width),
+  ``plain`` otherwise.
 
 A loop shorter than :data:`PLAIN_INTERVAL` (``bar`` mode: :data:`BAR_DELAY`) shows nothing.
 A bar opened inside another one shows as part of it (the text after the outer bar, or the
@@ -76,9 +77,20 @@ def current_mode():
         mode = os.environ.get(ENVIRONMENT, "auto")
         mode = mode if mode in MODES else "auto"
     if mode == "auto":
-        isatty = getattr(sys.stderr, "isatty", None)
-        mode = "bar" if isatty is not None and isatty() else "plain"
+        mode = "bar" if _is_terminal(sys.stderr) else "plain"
     return mode
+
+
+def _is_terminal(stream):
+    """A terminal a bar can be drawn on: a tty whose width is not 0 (a pseudo-terminal
+    without a size, as some job runners make, shows a bar as nothing)."""
+    isatty = getattr(stream, "isatty", None)
+    if isatty is None or not isatty():
+        return False
+    try:
+        return os.get_terminal_size(stream.fileno()).columns > 0
+    except (AttributeError, OSError, ValueError):  # no file descriptor: width unknown
+        return True
 
 
 def progress(message):

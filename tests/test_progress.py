@@ -6,6 +6,7 @@ show what long ones do.
 """
 
 import io
+import os
 import re
 import sys
 import time
@@ -114,3 +115,14 @@ def test_replicate_all_counts_finished_experiments(fast, tmp_path, capsys):
     err = capsys.readouterr().err
     assert re.search(LINE + r"experiments 1/2 \([\d.]+/s, \d+ s left\)", err), err
     assert (tmp_path / "a.log").read_text() == "plain\n"     # the experiments' own lines
+
+
+def test_a_terminal_without_a_width_gets_plain_lines(monkeypatch):
+    class SizelessTerminal(FakeTerminal):
+        def fileno(self):
+            return 2
+
+    monkeypatch.setattr(sys, "stderr", SizelessTerminal())
+    monkeypatch.delenv(progress.ENVIRONMENT)
+    monkeypatch.setattr(progress.os, "get_terminal_size", lambda fd: os.terminal_size((0, 0)))
+    assert progress.current_mode() == "plain"

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from replication.errors import InputError, check
-from replication.motion import baselines, irc, single
+from replication.motion import baselines, irc, pyramid, single
 from replication.motion.derivatives import sequence_derivatives
 from replication.motion.io import (read_manifest_sequences, read_sequence,
                                    write_sequence_folder, write_sequence_npz)
@@ -230,12 +230,31 @@ def find_rotation_shown(frames, settings):
             "pixels": pixels, "grid": grid, "region": region}
 
 
+def _top_level(sequence, found):
+    """The sequence and the answer on the pyramid's top level (``accumulation: pyramid``),
+    in that level's pixels, for Figs. 1-4: the figures show where the votes were cast."""
+    top, factor = found["pyramid"]["top"], found["pyramid"]["factor"]
+    shown = dict(found, paper=top["paper"], table=top["table"], grid=top["grid"],
+                 refined=dict(top["refined"], omega=found["refined"]["omega"]))
+    return pyramid.sequence_on_level(sequence, top["frames"], factor), shown
+
+
+def _pyramid_summary(found):
+    """``pyramid`` of ``result.json``: factor, level shapes and the answer on each level."""
+    info = found["pyramid"]
+    return {"factor": info["factor"], "shapes": info["shapes"],
+            "top": {key: info["top"]["refined"][key] for key in ("xi", "eta", "omega")},
+            "levels": info["levels"]}
+
+
 def single_rotation(config, out):
     """Paper 2.2 on one sequence: ``irc`` (paper estimate), ``irc_refined``, Figs. 1-4.
 
     ``data.path`` null means the paper-like synthetic sequence ``default_data``, and the
     figures go to ``figure_dir`` (``figures/``); for any other sequence they go to
-    ``out/figures``.
+    ``out/figures``. With ``method.accumulation: pyramid`` the result also holds
+    ``pyramid`` (factor, level shapes, the answer on each level) and the figures show the
+    pyramid's top level, where the votes were cast.
     """
     settings = single.settings_from(config.get("method"))
     _check_settings(settings)
@@ -245,7 +264,9 @@ def single_rotation(config, out):
              f"{sequence.frames.shape[1]} x {sequence.frames.shape[2]}")
     check_motion(sequence)
     single.warm_up()
-    found = find_rotation_shown(sequence.frames, settings)
+    found = (single.find_rotation(sequence.frames, settings)
+             if settings["accumulation"] == "pyramid"
+             else find_rotation_shown(sequence.frames, settings))
     paper, refined = found["paper"], found["refined"]
     progress(f"paper: {paper}; refined: {refined}")
     result = {
@@ -258,6 +279,8 @@ def single_rotation(config, out):
         "region_pixels": int(np.count_nonzero(found["region"])),
         "sweep": {key: found["table"][key].tolist() for key in ("omega", "xi", "eta", "peak")},
     }
+    if "pyramid" in found:
+        result["pyramid"] = _pyramid_summary(found)
     truth = _truth_of(sequence)
     if truth is not None:
         result["truth"] = {k: truth[k] for k in ("xi", "eta", "omega")}
@@ -266,7 +289,8 @@ def single_rotation(config, out):
     if config.get("figures", True):
         figure_dir = Path(config.get("figure_dir", "figures")) if given is None \
             else Path(out) / "figures"
-        result["figures"] = _draw_figures(sequence, found, settings, figure_dir)
+        shown = (sequence, found) if "pyramid" not in found else _top_level(sequence, found)
+        result["figures"] = _draw_figures(*shown, settings, figure_dir)
     return result
 
 

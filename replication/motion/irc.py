@@ -378,7 +378,7 @@ def density_blob(verify, gradient, *, blob_sigma=3.0, level=0.3):
     return density > level
 
 
-def _move_region(region, matrix, steps):
+def move_region(region, matrix, steps):
     """``region`` of frame 0 carried ``steps`` frames forward by the rigid ``matrix``."""
     if steps == 0:
         return region
@@ -387,6 +387,36 @@ def _move_region(region, matrix, steps):
     x0 = inverse[0, 0] * cols + inverse[0, 1] * rows + inverse[0, 2]
     y0 = inverse[1, 0] * cols + inverse[1, 1] * rows + inverse[1, 2]
     return ndimage.map_coordinates(region.astype(float), [y0, x0], order=0, cval=0.0) > 0.5
+
+
+def rigid_update(a, b, weights, centre):
+    """One weighted least-squares step of the warping refinement.
+
+    Solves ``a . (domega, p, q) = b`` with weights ``weights`` (rows of
+    :func:`_warped_equations`: a rotation ``domega`` about ``centre`` plus a shift
+    ``(p, q)``) and returns the small rigid motion as a matrix to compose into the estimate.
+
+    Parameters
+    ----------
+    a : (n, 3) ndarray
+    b, weights : (n,) ndarray
+    centre : (2,) ndarray
+        ``(x, y)`` about which ``domega`` turns.
+
+    Returns
+    -------
+    update : (3, 3) ndarray
+    d_omega : float
+    shift : float
+        ``|(p, q)|``, pixels.
+    """
+    root = np.sqrt(weights)
+    (d_omega, p, q), *_ = np.linalg.lstsq(a * root[:, None], b * root, rcond=None)
+    c, s = math.cos(d_omega), math.sin(d_omega)
+    update = np.eye(3)
+    update[:2, :2] = [[c, -s], [s, c]]
+    update[:2, 2] = np.array([p, q]) + centre - update[:2, :2] @ centre
+    return update, float(d_omega), math.hypot(p, q)
 
 
 def refine(frames, xi, eta, omega, region, *, sigma=1.5, relative_threshold=0.15,
@@ -440,7 +470,7 @@ def refine(frames, xi, eta, omega, region, *, sigma=1.5, relative_threshold=0.15
             a, b, static, mask = _warped_equations(smoothed[t], smoothed[t + 1], matrix, centre,
                                            border=border,
                                            relative_threshold=relative_threshold)
-            inside = _move_region(region, matrix, t)[mask]
+            inside = move_region(region, matrix, t)[mask]
             if t == 0:
                 gradient = mask
                 consistent = np.zeros_like(mask)
@@ -454,14 +484,9 @@ def refine(frames, xi, eta, omega, region, *, sigma=1.5, relative_threshold=0.15
         used = int(np.count_nonzero(w))
         if used < 3:
             break
-        root = np.sqrt(w)
-        (d_omega, p, q), *_ = np.linalg.lstsq(a * root[:, None], b * root, rcond=None)
-        c, s = math.cos(d_omega), math.sin(d_omega)
-        update = np.eye(3)
-        update[:2, :2] = [[c, -s], [s, c]]
-        update[:2, 2] = np.array([p, q]) + centre - update[:2, :2] @ centre
+        update, d_omega, shift = rigid_update(a, b, w, centre)
         matrix = matrix @ update
-        if abs(d_omega) < tol and math.hypot(p, q) < 1000 * tol:
+        if abs(d_omega) < tol and shift < 1000 * tol:
             break
     xi_r, eta_r, omega_r = matrix_to_irc(matrix)
     return {"xi": xi_r, "eta": eta_r, "omega": omega_r, "iterations": iterations,

@@ -3,6 +3,8 @@ the results and compute nothing but comparisons of those numbers with the stated
 
 from __future__ import annotations
 
+import math
+
 from replication.report import Section, SummaryRow, fmt
 
 # The paper's reported numbers (2.2), quoted, not measured.
@@ -299,3 +301,168 @@ def bench_section(result):
                    "beyond the paper" if sweep < goals["sweep_s_below"] else "partly"),
     ]
     return Section("\n".join(lines), rows)
+
+
+def _scale_table(rows):
+    lines = ["| side | method | noise (x/255) | time (s) | centre error (px) | centre error / "
+             "side | omega error (%) | best-peak centre error (px) | voting pixels | "
+             "top level |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for row in sorted(rows, key=lambda r: (r["side"], r["method"], r["noise_255"])):
+        lines.append(
+            f"| {row['side']} | {row['method']} | {fmt(row['noise_255'])} | "
+            f"{fmt(row['seconds'], 3)} | {fmt(row['centre_px'], 3)} | "
+            f"{fmt(row['centre_fraction_of_side'], 2)} | {fmt(row['omega_pct'], 3)} | "
+            f"{fmt(row['peak_centre_px'], 3)} | {row['voting_pixels']} | "
+            f"1/{row['factor']} |")
+    return lines
+
+
+def _exact_projection(result):
+    """The exact method's time at the largest side, extrapolated from its two largest sides."""
+    exact = [r for r in result["rows"] if r["method"] == "exact"]
+    largest = max(result["sides"])
+    sides = sorted({r["side"] for r in exact})
+    if len(sides) < 2 or sides[-1] >= largest:
+        return []
+    slowest = {side: max(r["seconds"] for r in exact if r["side"] == side) for side in sides}
+    local = math.log(slowest[sides[-1]] / slowest[sides[-2]]) / math.log(
+        (sides[-1] / sides[-2]) ** 2)
+    projected = slowest[sides[-1]] * (largest / sides[-1]) ** (2 * local)
+    return [f"The exact method was run up to {sides[-1]} x {sides[-1]} only "
+            f"(`exact_max_side`). Its time grew as pixels^{fmt(local, 3)} from {sides[-2]} to "
+            f"{sides[-1]}; at that rate it would take about {fmt(projected, 2)} s at "
+            f"{largest} x {largest} (an extrapolation, not a measurement)."]
+
+
+def scale_section(result):
+    """Time and accuracy against the frame side, growth exponents, goals."""
+    metrics, goals, met = result["metrics"], result["goals"], result["goals_met"]
+    small, large = result["compare"]
+    scene = result["scene"]
+    disc = scene["objects"][0]
+    ratio = metrics[f"pyramid_seconds_{large}_over_{small}_ratio"]
+    lines = [
+        f"One rotation centre on frames of {', '.join(str(s) for s in result['sides'])} "
+        "pixels a side, rendered from their definition by `replication/motion/scale_data.py` "
+        "(which imports numpy and math only): the same scene at every size, a disc of "
+        f"radius {fmt(disc['disc_radius'])} side turning by {fmt(disc['omega'])} "
+        f"rad/frame about ({fmt(disc['xi'])}, {fmt(disc['eta'])}) side on a static "
+        f"background, both textured by {scene['waves']} plane waves with 1/f amplitudes "
+        f"(the spectrum of natural images), seen through a camera with a low-pass at "
+        f"{fmt(scene['cutoff'])} cycles/pixel and square pixels; {scene['n_frames']} frames. "
+        "Noise levels "
+        + ", ".join(f"{fmt(v)}/255" for v in result["noise_levels_255"])
+        + " (noisy frames are quantised to 8 bits). `exact` is the paper's accumulation at "
+        "full resolution followed by the refinement (the default of `motion_single`); "
+        "`pyramid` (`method.accumulation=pyramid`) votes on a reduced copy with sides of at "
+        f"most {result['config'].get('method', {}).get('coarse_side', 256)} pixels and "
+        "refines level by level on a fixed number of sampled pixels. Times are the "
+        f"wall-clock seconds of the best of {result['config'].get('repeats', '?')} run(s) "
+        f"(pyramid) or {result['config'].get('exact_repeats', '?')} run(s) (exact) with "
+        f"{metrics.get('numba_threads', '?')} numba threads on a shared 2-core machine "
+        f"(load average {fmt(result.get('load_average_1min_start'), 3)} at the start, "
+        f"{fmt(metrics.get('load_average_1min'), 3)} at the end); errors are those of the "
+        "refined answer (`irc_refined`).",
+        "",
+        *_scale_table(result["rows"]),
+        "",
+        "Growth exponents (least-squares slope of log time against log pixel count; 1 is "
+        "linear in the pixels, 1.5 is the cube of the side):",
+        "",
+        f"| method | noise (x/255) | sides | exponent, all sides | exponent, sides >= {small} |",
+        "|---|---|---|---|---|",
+    ]
+    for fit in result["fits"]:
+        lines.append(f"| {fit['method']} | {fmt(fit['noise_255'])} | "
+                     f"{min(fit['sides'])}-{max(fit['sides'])} | "
+                     f"{fmt(fit['seconds_exponent_vs_pixels'], 3)} | "
+                     f"{fmt(fit.get('seconds_exponent_vs_pixels_from_small'), 3)} |")
+    lines += ["", f"Up to {result['config'].get('method', {}).get('coarse_side', 256)} "
+              "pixels a side the pyramid has one level and is the exact method (same answer, "
+              "same cost); above, its top level no longer grows and only the filtering of "
+              "the finer levels grows with the pixels, so the exponent over the larger sides "
+              "is the pyramid's own growth.", "", *_exact_projection(result)]
+    yes = {True: "met", False: "**not met**"}
+    lines += [
+        "",
+        "| goal | measured (worst over noise levels) | target | |",
+        "|---|---|---|---|",
+        f"| pyramid time at {large} / at {small} | {fmt(ratio, 3)} | <= "
+        f"{fmt(goals['seconds_ratio_at_most'])} | {yes[met['seconds_ratio']]} |",
+        f"| pyramid centre error at {small} | {fmt(metrics[f'pyramid_centre_px_{small}'], 3)} "
+        f"px | <= {fmt(goals['small_centre_px_at_most'])} px | {yes[met['centre_small']]} |",
+        f"| pyramid centre error at {large} | {fmt(metrics[f'pyramid_centre_px_{large}'], 3)} "
+        f"px | <= {fmt(goals['large_centre_px_at_most'])} px | {yes[met['centre_large']]} |",
+        f"| pyramid omega error, every size | {fmt(metrics['pyramid_omega_pct_max'], 3)} % | "
+        f"<= {fmt(goals['omega_pct_at_most'])} % | {yes[met['omega']]} |",
+        f"| pyramid growth exponent | {fmt(metrics['pyramid_seconds_exponent_vs_pixels'], 3)} "
+        f"| <= 1 (linear in pixels) | {yes[met['seconds_linear']]} |",
+        "",
+    ]
+    more, multi_rows = _scale_multi(result)
+    lines += more
+    lines += [f"![{path}]({path})" for path in result.get("figures", [])]
+    verdict = "beyond the paper" if all(met.values()) else "partly"
+    rows = [SummaryRow(
+        f"one rotation centre on {large} x {large} frames (scale goal)", "n/a (256 x 256)",
+        f"pyramid: {fmt(metrics[f'pyramid_seconds_{large}'], 3)} s, "
+        f"{fmt(ratio, 3)} x the time at {small}; centre "
+        f"{fmt(metrics[f'pyramid_centre_px_{large}'], 3)} px, omega within "
+        f"{fmt(metrics['pyramid_omega_pct_max'], 3)} %; time ~ pixels^"
+        f"{fmt(metrics['pyramid_seconds_exponent_vs_pixels'], 3)}",
+        f"<= {fmt(goals['seconds_ratio_at_most'])} x, {fmt(goals['large_centre_px_at_most'])} "
+        f"px, {fmt(goals['omega_pct_at_most'])} %", verdict)]
+    return Section("\n".join(lines), rows + multi_rows)
+
+
+def _scale_multi(result):
+    """The segmentation's rows of ``bench_motion_scale``: table, exponents, summary row."""
+    rows = result.get("multi_rows") or []
+    if not rows:
+        return [], []
+    sides = sorted({row["side"] for row in rows})
+    coarse = (result["config"].get("multi", {}).get("method", {}).get("pyramid", {})
+              .get("coarse_side", 256))
+    lines = [
+        "",
+        f"**Multi-object segmentation** (`segment_multi`'s pipeline with "
+        f"`method.pyramid.enabled=true`): three textured discs turning about their own "
+        f"centres (`MULTI_SCENE` of `scale_data.py`), segmented on the first pyramid level "
+        f"with sides of at most {coarse} pixels, each rotation then refined level by level "
+        "up to the input and each mask carried to the input's pixels. At "
+        f"{min(sides)} x {min(sides)} this is the segmentation without pyramid. An object is "
+        "found when its mask's IoU with the true one is at least 0.7 and its centre within "
+        "2 px (as in `segment_multi`). One run per size.",
+        "",
+        "| side | noise (x/255) | time (s) | found | min IoU | worst centre error (px) | "
+        "worst omega error (%) | false regions |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for row in rows:
+        lines.append(f"| {row['side']} | {fmt(row['noise_255'])} | {fmt(row['seconds'], 3)} | "
+                     f"{fmt(100 * row['found_fraction'], 3)} % | {fmt(row['min_iou'], 3)} | "
+                     f"{fmt(row['max_centre_px'], 3)} | {fmt(row['max_omega_pct'], 3)} | "
+                     f"{row['false_regions']} |")
+    fits = result.get("multi_fits") or []
+    if fits:
+        lines += ["", "Growth exponent of the segmentation's time against the pixel count: "
+                  + "; ".join(f"{fmt(fit['seconds_exponent_vs_pixels'], 3)} at noise "
+                              f"{fmt(fit['noise_255'])}/255" for fit in fits) + "."]
+    largest = [row for row in rows if row["side"] == max(sides)]
+    smallest = [row for row in rows if row["side"] == min(sides)]
+    same = (0 < min(r["found_fraction"] for r in largest)
+            and min(r["found_fraction"] for r in largest)
+            >= min(r["found_fraction"] for r in smallest)
+            and min(r["min_iou"] for r in largest) >= min(r["min_iou"] for r in smallest) - 0.02)
+    summary = SummaryRow(
+        f"multi-object segmentation on {max(sides)} x {max(sides)} frames (scale goal)",
+        f"n/a ({min(sides)} x {min(sides)})",
+        f"{fmt(max(r['seconds'] for r in largest), 3)} s; found "
+        f"{fmt(100 * min(r['found_fraction'] for r in largest), 3)} % (at {min(sides)}: "
+        f"{fmt(100 * min(r['found_fraction'] for r in smallest), 3)} %), min IoU "
+        f"{fmt(min(r['min_iou'] for r in largest), 3)} (at {min(sides)}: "
+        f"{fmt(min(r['min_iou'] for r in smallest), 3)})",
+        f"the accuracy at {min(sides)} x {min(sides)}",
+        "beyond the paper" if same else "partly")
+    return lines, [summary]

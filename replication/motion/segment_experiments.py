@@ -194,7 +194,10 @@ def segment_sequence(config, out):
     """Paper 2.3 on one sequence: ``objects`` (one mask file each in ``out``), Figs. 5-7.
 
     ``data.path`` null means the configured ``default_data`` and the figures go to
-    ``figure_dir`` (``figures/``); for any other sequence they go to ``out/figures``.
+    ``figure_dir`` (``figures/``); for any other sequence they go to ``out/figures``. With
+    ``method.pyramid.enabled`` the result also holds ``pyramid`` (factor, level shapes, each
+    object's rotation on the top level and after each finer level) and the figures show the
+    pyramid's top level, where the segmentation ran.
 
     Parameters
     ----------
@@ -202,7 +205,7 @@ def segment_sequence(config, out):
         The resolved ``segment_multi`` config (plain dict, docs/experiments.md) and the run's
         output folder.
     """
-    from replication.motion import segmentation
+    from replication.motion import pyramid, segmentation
 
     settings = segmentation.settings_from(config.get("method"))
     sequence, default = _load(config)
@@ -223,13 +226,23 @@ def segment_sequence(config, out):
               "discs": found["discs"].tolist(), "rotating": found["rotating"].tolist(),
               "snake_iterations": [r["iterations"] for r in found["regions"]]}
     progress(f"{len(found['objects'])} object(s) in {seconds:.1f} s")
+    if "pyramid" in found:
+        result["pyramid"] = {"factor": found["pyramid"]["factor"],
+                             "shapes": found["pyramid"]["shapes"],
+                             "objects": [{"top": item.get("top"), "levels": item.get("levels")}
+                                         for item in found["objects"]]}
     if sequence.truth and sequence.labels is not None:
         result["truth"] = sequence.truth["objects"]
         result["score"] = score_objects(found["objects"], sequence.labels[0], sequence.truth)
     if config.get("figures", True):
         figure_dir = Path(config.get("figure_dir") or FIGURE_DIR) if default \
             else Path(out) / "figures"
-        result["figures"] = _draw_figures(sequence, found, figure_dir)
+        shown = (sequence, found)
+        if "pyramid" in found:
+            shown = (pyramid.sequence_on_level(sequence, found["pyramid"]["frames"],
+                                               found["pyramid"]["factor"]),
+                     dict(found, objects=found["pyramid"]["top_objects"]))
+        result["figures"] = _draw_figures(*shown, figure_dir)
     return result
 
 

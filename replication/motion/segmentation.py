@@ -16,6 +16,10 @@
 4. Optionally (``assign.enabled``, beyond the paper) every object's mask is replaced by a
    per-pixel assignment of the pixels to the motions found (:mod:`.assignment`), and its
    rotation accumulated again over that mask (:func:`assign_pixels`).
+
+With ``pyramid.enabled`` (beyond the paper; frames of any size) steps 1-4 run on the top
+level of a pyramid and each object's rotation is refined level by level up to the input
+(:func:`segment_pyramid`).
 """
 
 from __future__ import annotations
@@ -26,7 +30,7 @@ import time
 import numpy as np
 
 from replication.errors import InputError
-from replication.motion import assignment, disc_ea, irc, snakes
+from replication.motion import assignment, disc_ea, irc, pyramid, snakes
 from replication.motion.derivatives import PixelDerivatives
 
 SNAKE_DEFAULTS = {"tolerance": 0.3, "ambiguous": 0.15, "empty_cost": 0.2,
@@ -48,6 +52,14 @@ MERGE_DEFAULTS = {"centre_px": 8.0, "omega_rel": 0.25, "min_area": 150,
                   "extra_seeds": 0,        # not in the paper: extra snakes per object (below)
                   "seed_sigma": 4.0,      # pixels
                   "seed_density": 0.5}
+PYRAMID_DEFAULTS = {          # not in the paper: frames of any size (segment_pyramid)
+    "enabled": False,
+    "coarse_side": 256,       # segment the first pyramid level with sides <= this, pixels
+    "refine_pixels": 50000,   # sampled pixels per frame pair and object on finer levels
+    "level_iterations": 10,   # warping iterations per finer level
+    "refine_threshold": 0.15,  # gradient >= this x its 99th percentile, on finer levels
+    "tukey_c": 1.0,           # normal-flow residual scale, pixels/frame
+}
 # the additions to the paper that the study's "pipeline" uses; "faithful" switches them off
 FAITHFUL = {"ea": {"project_fresh": False, "reject_static": False},
             "snake": {"deflate": False, "rounds": 1},
@@ -55,14 +67,15 @@ FAITHFUL = {"ea": {"project_fresh": False, "reject_static": False},
             "assign": {"enabled": False}}
 GROUPS = {"ea": disc_ea.DEFAULTS, "snake": SNAKE_DEFAULTS,
           "accumulation": ACCUMULATION_DEFAULTS, "merge": MERGE_DEFAULTS,
-          "assign": assignment.DEFAULTS}
+          "assign": assignment.DEFAULTS, "pyramid": PYRAMID_DEFAULTS}
 
 
 def settings_from(method):
     """Defaults of every step updated by a config's ``method`` block.
 
     ``method`` is ``{search: paper|nichega, ea: {...}, snake: {...}, accumulation: {...},
-    merge: {...}, assign: {...}, nichega: {...}}``; unknown groups or keys are refused.
+    merge: {...}, assign: {...}, pyramid: {...}, nichega: {...}}``; unknown groups or keys
+    are refused.
 
     Raises
     ------
@@ -116,6 +129,19 @@ def _check_ranges(settings):
                     raise InputError(f"{where}: expected an integer >= 1")
             elif isinstance(value, (int, float)) and not (math.isfinite(value) and value >= 0):
                 raise InputError(f"{where}: expected a finite number >= 0")
+    for key, low in (("coarse_side", 32), ("refine_pixels", 100), ("level_iterations", 1)):
+        value = settings["pyramid"][key]
+        if not isinstance(value, int) or isinstance(value, bool) or value < low:
+            raise InputError(f"method.pyramid.{key}={value!r}: expected an integer >= {low}")
+    threshold, tukey = settings["pyramid"]["refine_threshold"], settings["pyramid"]["tukey_c"]
+    if not (isinstance(threshold, (int, float)) and 0 < threshold < 1):
+        raise InputError(f"method.pyramid.refine_threshold={threshold!r}: expected a fraction "
+                         "in (0, 1)")
+    if not (isinstance(tukey, (int, float)) and math.isfinite(tukey) and tukey > 0):
+        raise InputError(f"method.pyramid.tukey_c={tukey!r}: expected a number > 0")
+    if not isinstance(settings["pyramid"]["enabled"], bool):
+        raise InputError(f"method.pyramid.enabled={settings['pyramid']['enabled']!r}: "
+                         "expected true or false")
     count, limit = settings["accumulation"]["omega_count"], LIMITS["max_sweep_values"]
     if count > limit:
         raise InputError(f"method.accumulation.omega_count={count}: expected at most "
@@ -375,8 +401,67 @@ def search_discs(data, settings, rng):
     return found["retained"], found["evaluations"]
 
 
+def segment_pyramid(frames, settings, rng):
+    """Coarse to fine (beyond the paper): :func:`segment` on the top level of a pyramid
+    (:func:`replication.motion.pyramid.levels`, sides of at most ``pyramid.coarse_side``),
+    then each object's rotation refined on every finer level up to the input
+    (:func:`replication.motion.pyramid.refine_levels`, from its mask eroded by ``3 sigma``)
+    and its mask carried to the input's pixels (nearest top-level pixel).
+
+    Settings in pixels (disc radii, margins, windows, areas) are in top-level pixels. Frames
+    no larger than ``coarse_side`` give exactly :func:`segment`'s answer.
+
+    Parameters
+    ----------
+    frames : (T, H, W) ndarray, T >= 2
+    settings : dict
+        From :func:`settings_from` (``pyramid`` group).
+    rng : numpy.random.Generator or int or None
+        Drives the disc search only.
+
+    Returns
+    -------
+    dict
+        :func:`segment`'s keys, ``objects`` in input pixels (``mask`` (H, W), ``area``,
+        ``xi, eta, omega`` refined, ``levels`` the answer after each finer level, ``top``
+        the rotation found on the top level), the rest (``discs``, ``regions``,
+        ``pixels``, ...) on the top level; ``seconds`` adds ``pyramid`` (building it) and
+        ``levels`` (refining); ``pyramid``: ``factor``, ``shapes``, ``frames`` (the top
+        level's) and ``top_objects`` (the objects on the top level, for drawing).
+    """
+    from replication.motion.single import erode
+
+    start = time.perf_counter()
+    options = settings["pyramid"]
+    levels = pyramid.levels(frames, int(options["coarse_side"]))
+    factor = 2 ** (len(levels) - 1)
+    built = time.perf_counter()
+    found = segment(levels[-1], {**settings, "pyramid": {**options, "enabled": False}}, rng)
+    refined_at = time.perf_counter()
+    top_objects = found["objects"]
+    objects = top_objects
+    if factor > 1:
+        erosion = math.ceil(3 * settings["ea"]["sigma"])
+        answers = pyramid.refine_levels(levels, top_objects,
+                                        [erode(o["mask"], erosion) for o in top_objects],
+                                        {**options, "sigma": settings["ea"]["sigma"]})
+        objects = []
+        for item, answer in zip(top_objects, answers):
+            mask = pyramid.upsample_mask(item["mask"], factor, frames.shape[1:])
+            objects.append({**item, "xi": answer["xi"], "eta": answer["eta"],
+                            "omega": answer["omega"], "mask": mask,
+                            "area": int(np.count_nonzero(mask)), "levels": answer["levels"],
+                            "top": {k: float(item[k]) for k in ("xi", "eta", "omega")}})
+    seconds = {"pyramid": built - start, **found["seconds"],
+               "levels": time.perf_counter() - refined_at}
+    return {**found, "objects": objects, "seconds": seconds,
+            "pyramid": {"factor": factor, "shapes": [list(v.shape[1:]) for v in levels],
+                        "frames": levels[-1], "top_objects": top_objects}}
+
+
 def segment(frames, settings, rng):
-    """The whole pipeline on one sequence.
+    """The whole pipeline on one sequence (:func:`segment_pyramid` when
+    ``pyramid.enabled``).
 
     Parameters
     ----------
@@ -395,6 +480,8 @@ def segment(frames, settings, rng):
         disc: snake ``rho``, ``centre``, ``mask``, refined estimate or None), ``seconds``
         per step (search, snakes, accumulation, assign), ``evaluations``.
     """
+    if settings["pyramid"]["enabled"]:
+        return segment_pyramid(frames, settings, rng)
     ea = settings["ea"]
     clock = [time.perf_counter()]
     data = disc_ea.disc_data(frames, sigma=ea["sigma"],

@@ -1,4 +1,9 @@
-"""One rotation centre end to end: the paper's accumulation (2.2), then the refinement."""
+"""One rotation centre end to end: the paper's accumulation (2.2), then the refinement.
+
+``accumulation: exact`` (the default) votes at full resolution, as the paper does;
+``accumulation: pyramid`` votes on a reduced copy of the frames and refines level by level
+(:mod:`replication.motion.pyramid`), for frames of any size.
+"""
 
 from __future__ import annotations
 
@@ -9,7 +14,7 @@ import numpy as np
 from scipy import ndimage
 
 from replication.errors import InputError
-from replication.motion import irc
+from replication.motion import irc, pyramid
 from replication.motion.derivatives import sequence_derivatives
 
 DEFAULTS = {
@@ -29,7 +34,13 @@ DEFAULTS = {
     "rounds": 2,                  # refinement rounds (region re-detected between rounds)
     "coarse_count": 24,           # fast variant: omega values of the coarse sweep
     "coarse_cell": 2.0,           # fast variant: accumulator cell, pixels
+    "accumulation": "exact",      # exact: the paper's, at full resolution | pyramid
+    "coarse_side": 256,           # pyramid: vote on the first level with sides <= this
+    "refine_pixels": 50000,       # pyramid: sampled pixels per frame pair on finer levels
+    "level_iterations": 10,       # pyramid: warping iterations per finer level
 }
+
+ACCUMULATIONS = ("exact", "pyramid")
 
 
 def settings_from(method):
@@ -47,6 +58,13 @@ def settings_from(method):
                          + ", ".join(DEFAULTS))
     settings = dict(DEFAULTS)
     settings.update(method)
+    if settings["accumulation"] not in ACCUMULATIONS:
+        raise InputError(f"method.accumulation={settings['accumulation']!r}: expected one of "
+                         + ", ".join(ACCUMULATIONS))
+    for key, low in (("coarse_side", 32), ("refine_pixels", 100), ("level_iterations", 1)):
+        value = settings[key]
+        if not isinstance(value, int) or isinstance(value, bool) or value < low:
+            raise InputError(f"method.{key}={value!r}: expected an integer >= {low}")
     return settings
 
 
@@ -135,6 +153,8 @@ def refined_method(frames, start, pixels, settings):
 def find_rotation(frames, settings):
     """Paper estimate, refined estimate and timings for one sequence.
 
+    ``settings["accumulation"] == "pyramid"`` hands over to :func:`pyramid_rotation`.
+
     Returns
     -------
     dict
@@ -142,6 +162,8 @@ def find_rotation(frames, settings):
         pixels}), ``seconds`` ({paper, refined}), and the working arrays ``table``,
         ``pixels``, ``grid``, ``region``.
     """
+    if settings["accumulation"] == "pyramid":
+        return pyramid_rotation(frames, settings)
     start = time.perf_counter()
     paper, table, pixels, grid = paper_method(frames, settings)
     middle = time.perf_counter()
@@ -151,6 +173,69 @@ def find_rotation(frames, settings):
     return {"paper": paper, "refined": refined,
             "seconds": {"paper": middle - start, "refined": end - middle},
             "table": table, "pixels": pixels, "grid": grid, "region": region}
+
+
+def pyramid_rotation(frames, settings):
+    """Coarse to fine: the paper's accumulation and refinement on the top level of a
+    pyramid, then the sampled refinement on every finer level (beyond the paper).
+
+    The top level is the first whose sides are at most ``coarse_side`` pixels, so the
+    accumulator and the number of voting pixels do not grow with the frames; ``cell`` and
+    ``margin`` are in pixels of that level. Frames no larger than ``coarse_side`` give
+    exactly the ``exact`` method's answer.
+
+    Parameters
+    ----------
+    frames : (T, H, W) ndarray
+    settings : dict
+        Keys of :data:`DEFAULTS` (``coarse_side``, ``refine_pixels``, ``level_iterations``
+        and those of the exact method).
+
+    Returns
+    -------
+    dict
+        As :func:`find_rotation`, in input pixels: ``paper`` (the top level's best peak),
+        ``refined`` (after the input level), ``seconds`` ({pyramid, paper, refined}:
+        building the pyramid, accumulation on the top level, refinement on every level),
+        ``table`` and ``grid`` (the top level's sweep and accumulator, in input pixels),
+        ``pixels`` and ``region`` (the top level's voting pixels and region, in its own
+        pixels), and ``pyramid``: ``factor``, ``shapes`` (per level), ``levels`` (the
+        answer after each finer level, see :func:`~replication.motion.pyramid.
+        refine_levels`) and ``top`` (the top level's ``frames``, ``paper``, ``refined``,
+        ``table`` and ``grid`` in its own pixels, for drawing).
+    """
+    start = time.perf_counter()
+    levels = pyramid.levels(frames, int(settings["coarse_side"]))
+    factor = 2 ** (len(levels) - 1)
+    built = time.perf_counter()
+    top_settings = dict(settings, margin=settings["margin"] / factor)
+    paper, table, pixels, grid = paper_method(levels[-1], top_settings)
+    voted = time.perf_counter()
+    top = refined_method(levels[-1], paper, pixels, top_settings)
+    region = top.pop("region")
+    erosion = settings["region_erode"]
+    erosion = math.ceil(3 * settings["sigma"]) if erosion is None else erosion
+    fine = pyramid.refine_levels(levels, [top], [erode(region, erosion)], settings)[0]
+    end = time.perf_counter()
+    refined = {key: fine[key] for key in ("xi", "eta", "omega", "iterations", "pixels")}
+    refined["iterations"] += top["iterations"]
+    if factor == 1:
+        refined = dict(top)
+    in_input = {"xi": float(pyramid.to_input(paper["xi"], factor)),
+                "eta": float(pyramid.to_input(paper["eta"], factor)),
+                "omega": paper["omega"], "peak": paper["peak"]}
+    table_input = dict(table, xi=pyramid.to_input(table["xi"], factor),
+                       eta=pyramid.to_input(table["eta"], factor))
+    return {"paper": in_input, "refined": refined,
+            "seconds": {"pyramid": built - start, "paper": voted - built,
+                        "refined": end - voted},
+            "table": table_input, "grid": pyramid.grid_in_input(grid, factor),
+            "pixels": pixels, "region": region,
+            "pyramid": {"factor": factor,
+                        "shapes": [list(level.shape[1:]) for level in levels],
+                        "levels": fine["levels"],
+                        "top": {"frames": levels[-1], "paper": paper, "refined": top,
+                                "table": table, "grid": grid}}}
 
 
 def coarse_then_refined(frames, settings):

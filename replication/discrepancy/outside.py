@@ -19,7 +19,7 @@ from __future__ import annotations
 import os
 import tempfile
 import time
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 import numpy as np
@@ -84,10 +84,10 @@ def run_one(spec, settings, folder):
     }
 
 
-def _run_chunk(args):
-    specs, settings = args
+def _run_in_worker(args):
+    spec, settings = args
     with tempfile.TemporaryDirectory() as folder:
-        return [run_one(spec, settings, folder) for spec in specs]
+        return run_one(spec, settings, folder)
 
 
 def outside_study(config, out):
@@ -99,23 +99,22 @@ def outside_study(config, out):
     check(workers >= 1, f"study.workers={workers}: expected at least 1")
     specs = draw_specs(study, config["seed"])
     settings = config.get("discrepancy") or {}
-    rows = []
+    rows = [None] * n_datasets
     if workers == 1:
         with tempfile.TemporaryDirectory() as folder:
             for index, spec in enumerate(specs):
-                rows.append(run_one(spec, settings, folder))
-                _report(index, n_datasets, rows[-1])
+                rows[index] = run_one(spec, settings, folder)
+                _report(index, n_datasets, rows[index])
     else:
-        chunks = [(specs[k::workers], settings) for k in range(workers)]
         os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")   # idle numba threads yield
         with ProcessPoolExecutor(max_workers=workers) as pool:
-            # each worker takes every workers-th spec; rows are put back in spec order
-            for k, chunk_rows in enumerate(pool.map(_run_chunk, chunks)):
-                for offset, row in enumerate(chunk_rows):
-                    rows.append((k + offset * workers, row))
-        rows = [row for _, row in sorted(rows, key=lambda item: item[0])]
-        for index, row in enumerate(rows):
-            _report(index, n_datasets, row)
+            # one task per dataset, reported as each finishes; rows stay in spec order
+            futures = {pool.submit(_run_in_worker, (spec, settings)): index
+                       for index, spec in enumerate(specs)}
+            for done, future in enumerate(as_completed(futures)):
+                index = futures[future]
+                rows[index] = future.result()
+                _report(done, n_datasets, rows[index])
     summary = summarise(rows, float(study["detection_snr"]))
     result = {"datasets": rows, "summary": summary}
     if config.get("manifest"):
@@ -177,3 +176,58 @@ def summarise(rows, detection_snr):
         "wall_seconds_median": float(np.median([r["wall_seconds"] for r in rows])),
         "wall_seconds_max": float(np.max([r["wall_seconds"] for r in rows])),
     }
+
+
+SWEEP_CSV = Path("results/discrepancy_outside/sweep.csv")
+_ROW_FIELDS = ("exact", "min_snr", "noise_h", "n_frames", "unexplained", "expected_unexplained",
+               "gap_before", "gap_after", "refused", "wall_seconds")
+_ROW_LISTS = ("kinds", "named", "expected_names")
+
+
+def rows_from_gathered(path=SWEEP_CSV):
+    """Dataset rows of every run of a gathered sweep (``replicate-gather`` CSV), pooled.
+
+    The CSV holds one line per run and one column per leaf of its ``result.json``
+    (``datasets.N.exact``, ``datasets.N.kinds.0``, ...); this puts the datasets of all runs
+    back into one list of rows that :func:`summarise` reads. Returns ``(rows, runs)``, or
+    ``([], [])`` when the file does not exist.
+    """
+    import csv
+    import math
+
+    path = Path(path)
+    if not path.is_file():
+        return [], []
+    with open(path, newline="") as handle:
+        lines = list(csv.DictReader(handle))
+
+    def value(text):
+        if text in ("", None):
+            return None
+        if text in ("True", "False"):
+            return text == "True"
+        try:
+            number = float(text)
+        except ValueError:
+            return text
+        return int(number) if number.is_integer() and not math.isinf(number) else number
+
+    rows, runs = [], []
+    for line in lines:
+        runs.append({"run": line.get("run"), "seed": value(line.get("seed"))})
+        index = 0
+        while f"datasets.{index}.exact" in line and line[f"datasets.{index}.exact"] != "":
+            head = f"datasets.{index}."
+            row = {key: value(line.get(head + key)) for key in _ROW_FIELDS}
+            for key in _ROW_LISTS:
+                items, k = [], 0
+                while line.get(f"{head}{key}.{k}") not in (None, ""):
+                    items.append(line[f"{head}{key}.{k}"])
+                    k += 1
+                row[key] = items
+            row["exact"] = bool(row["exact"])
+            row["unexplained"] = bool(row["unexplained"])
+            row["min_snr"] = float(row["min_snr"])
+            rows.append(row)
+            index += 1
+    return rows, runs

@@ -10,9 +10,11 @@ Steps, each a call into a lower module:
 3. Name effects one at a time (forward selection): score every library effect not yet
    named, added to the model (:func:`naming.score_candidates`: a Wald test, stable over
    random halves of the data), refit the most promising ones jointly with the base model
-   and the effects already named, and keep the one that the held-out rollout, the BIC and
-   the residual structure all confirm (``Q`` back under ``q_threshold`` or lowered by
-   ``explained_min`` of its excess).
+   and the effects already named, and keep the one that the held-out rollout and the
+   residual structure confirm: ``Q`` above ``q_threshold`` lowered by ``explained_min`` of
+   its excess, or ``Q`` ending under the threshold with the BIC agreeing.
+   A named force whose coefficients change over stretches of time is dropped again
+   (:func:`constancy`).
 4. Structure that the named effects leave (more than ``unexplained_fraction`` of the excess
    ``Q`` of the base model, and ``Q`` above the threshold) is reported as unexplained, with
    when (time windows) and where (mesh patches) it is.
@@ -21,6 +23,7 @@ Steps, each a call into a lower module:
 from __future__ import annotations
 
 import numpy as np
+from scipy.stats import chi2
 
 from replication.cloth import regression
 from replication.discrepancy import effects as fx
@@ -33,9 +36,12 @@ DEFAULTS = {
     "model": "5", "holdout_block": 25, "holdout_every": 4, "window": 10, "patch": 4,
     "alpha": 1e-3, "n_subsamples": 20, "stability_min": 0.5, "q_threshold": 3.0,
     "explained_min": 0.5, "max_candidates": 2, "max_effects": 3,
-    "unexplained_fraction": 0.05,
+    "unexplained_fraction": 0.01, "segments": 4, "constancy_max": 0.2,
 }
 MIN_FRAMES = 60
+# the time-constancy check applies to force terms with at most this many coefficients
+# (profiles of mass or stiffness have too many to be solved on a stretch of the data)
+MAX_CONSTANCY_COEFFICIENTS = 4
 # A named effect must improve the held-out rollout by at least this (units of h): on
 # noise-free data, once the right effects are in, what is left is round-off, and a further
 # term can only "improve" it by round-off.
@@ -52,10 +58,11 @@ def settings_from(config):
     for key in ("holdout_block", "holdout_every", "window", "patch"):
         if int(settings[key]) < 2:
             raise InputError(f"discrepancy.{key}={settings[key]}: expected an integer >= 2")
-    for key in ("n_subsamples", "max_candidates", "max_effects"):
+    for key in ("n_subsamples", "max_candidates", "max_effects", "segments"):
         if int(settings[key]) < 1:
             raise InputError(f"discrepancy.{key}={settings[key]}: expected an integer >= 1")
-    for key in ("alpha", "stability_min", "explained_min", "unexplained_fraction"):
+    for key in ("alpha", "stability_min", "explained_min", "unexplained_fraction",
+                "constancy_max"):
         if not 0 < float(settings[key]) <= 1:
             raise InputError(f"discrepancy.{key}={settings[key]}: expected 0 < value <= 1")
     if float(settings["q_threshold"]) <= 0:
@@ -85,6 +92,51 @@ def _quick_q(data, fit, frames, settings, name, score, model, mask):
     terms = list(fit.terms) + [(fx.get_effect(name), np.asarray(score["theta"]))]
     trial = regression.Fit(base, terms, None, None, fit.mask, "regression")
     return _q(data, trial, frames, settings, mask)[0]
+
+
+def constancy(data, trial, name, frames, *, model, segments, alpha):
+    """Does the term ``name`` of ``trial`` hold the same coefficients over time?
+
+    The joint model (base and every term, at the trial's ``tau`` and constraint mask) is
+    solved again on ``segments`` consecutive stretches of ``frames``. A constant-coefficient
+    effect of the right form gives the same force in every stretch, up to noise; a library
+    term that only soaks up part of an effect of another form (a force that oscillates in
+    time, a field that depends on where the sheet is, a nonlinear spring) changes from one
+    stretch to the next. Returned: ``change``, the largest RMS difference between a
+    stretch's force of the term and the force of its pooled coefficients (on that
+    stretch), relative to the pooled force's RMS; ``log10_p`` of the Wald test that the
+    coefficients are equal over the stretches (cluster-robust covariances).
+    """
+    plugins = [plugin for plugin, _ in trial.terms]
+    columns, slices = regression.design(data, trial.base, plugins, model)
+    G, hz, labels, _ = regression.cluster_sums(columns, data.target, frames, trial.mask)
+    cut = np.array_split(np.arange(labels.size), segments)
+    cut = [c for c in cut if c.size >= 2]
+    if len(cut) < 2:
+        return {"change": 0.0, "log10_p": 0.0, "segments": len(cut)}
+    where = slices[name]
+    pooled = trial.term(name)
+    thetas, precisions = [], []
+    change = 0.0
+    for clusters in cut:
+        theta, cov = regression.iv_solve(G, hz, clusters=clusters, labels=labels)
+        part = theta[where]
+        thetas.append(part)
+        precisions.append(np.linalg.pinv(cov[where, where], rcond=1e-10, hermitian=True))
+        seg = frames[np.isin(frames // 5, labels[clusters])]
+        cols = columns[seg][..., where][trial.mask[seg]]
+        reference = float(np.sqrt(np.mean((cols @ pooled) ** 2)))
+        if reference > 0:
+            change = max(change, float(np.sqrt(np.mean((cols @ (part - pooled)) ** 2)))
+                         / reference)
+    total = sum(precisions)
+    mean = np.linalg.pinv(total, rcond=1e-10, hermitian=True) @ sum(
+        w @ t for w, t in zip(precisions, thetas))
+    stat = float(sum((t - mean) @ w @ (t - mean) for w, t in zip(precisions, thetas)))
+    df = max(1, pooled.size * (len(cut) - 1))
+    log10_p = float(chi2.logsf(stat, df) / np.log(10.0))
+    return {"change": change, "log10_p": log10_p, "segments": len(cut),
+            "varies": bool(change > 0 and log10_p < np.log10(alpha))}
 
 
 def _standard_errors(fit, name, model):
@@ -209,10 +261,13 @@ def analyse(trajectory, config=None, *, rng=None):
                                         scores[name]["df"]),
                 "fit": trial.how,
             }
+            # strong: removes most of a structure above the threshold; weak (the structure
+            # was already under it, or ends under it): the BIC must agree too
+            strong = (q_current > settings["q_threshold"]
+                      and explained >= settings["explained_min"])
+            weak = q_after <= settings["q_threshold"] and evidence["delta_bic"] < 0
             confirmed = bool(gap_trial["rollout"] < gap_current["rollout"] - MIN_GAIN_H
-                             and evidence["delta_bic"] < 0
-                             and (q_after <= settings["q_threshold"]
-                                  or explained >= settings["explained_min"]))
+                             and (strong or weak))
             tried.append({"name": name, "step": len(selected), "confirmed": confirmed,
                           "evidence": evidence})
             if confirmed and (best is None or q_after < best[1]):
@@ -222,6 +277,29 @@ def analyse(trajectory, config=None, *, rng=None):
         name, q_current, current, gap_current, r_current, evidence = best
         selected.append(name)
         named.append((name, evidence))
+    dropped = []
+    if selected and current.how == "regression":
+        # a force term whose coefficients change over time only soaks up part of an effect of
+        # another form (oscillating in time, depending on where the sheet is, nonlinear)
+        for name, evidence in named:
+            if len(current.term(name)) > MAX_CONSTANCY_COEFFICIENTS:
+                continue
+            steady = constancy(data, current, name, frames, model=model,
+                               segments=settings["segments"], alpha=settings["alpha"])
+            evidence["constancy"] = steady
+            if steady["varies"] and steady["change"] > settings["constancy_max"]:
+                dropped.append({"name": name, "constancy": steady,
+                                "reason": "its coefficients change over time: it soaks up "
+                                          "part of an effect of another form"})
+        if dropped:
+            gone = {d["name"] for d in dropped}
+            named = [(n, e) for n, e in named if n not in gone]
+            selected = [n for n in selected if n not in gone]
+            current = (regression.fit(data, train, [fx.get_effect(n) for n in selected],
+                                      model=model) if selected else base_fit)
+            q_current, _ = _q(data, current, frames, settings, mask)
+            gap_current = {"rollout": rollout_error(data, current, held, start=start),
+                           "one_step": one_step_error(data, current, held)}
     named_effects = [_describe(current, name, evidence, model) for name, evidence in named]
     final = current if selected else base_fit
     located_final = where(data, final, frames, window=settings["window"],
@@ -256,5 +334,6 @@ def analyse(trajectory, config=None, *, rng=None):
         "candidates": rounds[0] if rounds else {},
         "candidates_by_step": rounds,
         "tried": tried,
+        "dropped": dropped,
         "settings": settings,
     }

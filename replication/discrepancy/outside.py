@@ -178,7 +178,7 @@ def summarise(rows, detection_snr):
     }
 
 
-SWEEP_CSV = Path("results/discrepancy_outside/sweep.csv")
+SWEEP_CSV = Path("results/discrepancy_outside_sweep.csv")
 _ROW_FIELDS = ("exact", "min_snr", "noise_h", "n_frames", "unexplained", "expected_unexplained",
                "gap_before", "gap_after", "refused", "wall_seconds")
 _ROW_LISTS = ("kinds", "named", "expected_names")

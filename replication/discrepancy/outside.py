@@ -178,13 +178,15 @@ def summarise(rows, detection_snr):
     }
 
 
+# the gathered documented sweep, committed beside the result folders (relative to the root)
 SWEEP_CSV = Path("results/discrepancy_outside_sweep.csv")
+_ROOT = Path(__file__).resolve().parents[2]
 _ROW_FIELDS = ("exact", "min_snr", "noise_h", "n_frames", "unexplained", "expected_unexplained",
                "gap_before", "gap_after", "refused", "wall_seconds")
 _ROW_LISTS = ("kinds", "named", "expected_names")
 
 
-def rows_from_gathered(path=SWEEP_CSV):
+def rows_from_gathered(path=None):
     """Dataset rows of every run of a gathered sweep (``replicate-gather`` CSV), pooled.
 
     The CSV holds one line per run and one column per leaf of its ``result.json``
@@ -195,7 +197,7 @@ def rows_from_gathered(path=SWEEP_CSV):
     import csv
     import math
 
-    path = Path(path)
+    path = _ROOT / SWEEP_CSV if path is None else Path(path)
     if not path.is_file():
         return [], []
     with open(path, newline="") as handle:

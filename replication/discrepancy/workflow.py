@@ -95,48 +95,70 @@ def _quick_q(data, fit, frames, settings, name, score, model, mask):
 
 
 def constancy(data, trial, name, frames, *, model, segments, alpha):
-    """Does the term ``name`` of ``trial`` hold the same coefficients over time?
+    """Does the term ``name`` of ``trial`` hold the same coefficients over time and space?
 
     The joint model (base and every term, at the trial's ``tau`` and constraint mask) is
-    solved again on ``segments`` consecutive stretches of ``frames``. A constant-coefficient
-    effect of the right form gives the same force in every stretch, up to noise; a library
-    term that only soaks up part of an effect of another form (a force that oscillates in
-    time, a field that depends on where the sheet is, a nonlinear spring) changes from one
-    stretch to the next. Returned: ``change``, the largest RMS difference between a
-    stretch's force of the term and the force of its pooled coefficients (on that
-    stretch), relative to the pooled force's RMS; ``log10_p`` of the Wald test that the
-    coefficients are equal over the stretches (cluster-robust covariances).
+    solved again on parts of the data: ``segments`` consecutive stretches of ``frames``, the
+    two halves of the mesh along ``j`` and the two halves along ``i``. A constant-coefficient
+    effect of the right form gives the same force in every part, up to noise; a library term
+    that only soaks up part of an effect of another form (a force that oscillates in time, a
+    field that changes across the sheet, a nonlinear spring) changes from part to part.
+
+    Returns
+    -------
+    dict with, per split (``time``, ``across_j``, ``across_i``): ``change``, the largest RMS
+    difference between a part's force of the term and the force of the pooled coefficients
+    (on that part), relative to the pooled force's RMS, and ``log10_p`` of the Wald test
+    that the coefficients are equal over the parts (cluster-robust covariances); and
+    ``change``, ``log10_p``, ``varies`` of the split that varies most (``varies``: its test
+    rejects at ``alpha`` over the three splits).
     """
     plugins = [plugin for plugin, _ in trial.terms]
     columns, slices = regression.design(data, trial.base, plugins, model)
-    G, hz, labels, _ = regression.cluster_sums(columns, data.target, frames, trial.mask)
-    cut = np.array_split(np.arange(labels.size), segments)
-    cut = [c for c in cut if c.size >= 2]
-    if len(cut) < 2:
-        return {"change": 0.0, "log10_p": 0.0, "segments": len(cut)}
     where = slices[name]
     pooled = trial.term(name)
-    thetas, precisions = [], []
-    change = 0.0
+    G, hz, labels, _ = regression.cluster_sums(columns, data.target, frames, trial.mask)
+    cut = [c for c in np.array_split(np.arange(labels.size), segments) if c.size >= 2]
+    parts = {"time": []}
     for clusters in cut:
         theta, cov = regression.iv_solve(G, hz, clusters=clusters, labels=labels)
-        part = theta[where]
-        thetas.append(part)
-        precisions.append(np.linalg.pinv(cov[where, where], rcond=1e-10, hermitian=True))
         seg = frames[np.isin(frames // 5, labels[clusters])]
-        cols = columns[seg][..., where][trial.mask[seg]]
-        reference = float(np.sqrt(np.mean((cols @ pooled) ** 2)))
-        if reference > 0:
-            change = max(change, float(np.sqrt(np.mean((cols @ (part - pooled)) ** 2)))
-                         / reference)
-    total = sum(precisions)
-    mean = np.linalg.pinv(total, rcond=1e-10, hermitian=True) @ sum(
-        w @ t for w, t in zip(precisions, thetas))
-    stat = float(sum((t - mean) @ w @ (t - mean) for w, t in zip(precisions, thetas)))
-    df = max(1, pooled.size * (len(cut) - 1))
-    log10_p = float(chi2.logsf(stat, df) / np.log(10.0))
-    return {"change": change, "log10_p": log10_p, "segments": len(cut),
-            "varies": bool(change > 0 and log10_p < np.log10(alpha))}
+        rows = np.zeros_like(trial.mask)
+        rows[seg] = trial.mask[seg]
+        parts["time"].append((theta, cov, rows))
+    for split, coordinate in (("across_j", data.ops.s_j), ("across_i", data.ops.s_i)):
+        parts[split] = []
+        for half in (coordinate < 0, coordinate > 0):
+            rows = trial.mask & half[None, :]
+            G_h, hz_h, labels_h, _ = regression.cluster_sums(columns, data.target, frames, rows)
+            theta, cov = regression.iv_solve(G_h, hz_h, labels=labels_h)
+            parts[split].append((theta, cov, rows))
+    out, worst = {}, {"change": 0.0, "log10_p": 0.0, "varies": False}
+    level = np.log10(alpha / len(parts))
+    for split, solved in parts.items():
+        if len(solved) < 2:
+            continue
+        thetas, precisions, change = [], [], 0.0
+        for theta, cov, rows in solved:
+            part = theta[where]
+            thetas.append(part)
+            precisions.append(np.linalg.pinv(cov[where, where], rcond=1e-10, hermitian=True))
+            cols = columns[..., where][rows]
+            reference = float(np.sqrt(np.mean((cols @ pooled) ** 2))) if cols.size else 0.0
+            if reference > 0:
+                change = max(change, float(np.sqrt(np.mean((cols @ (part - pooled)) ** 2)))
+                             / reference)
+        mean = np.linalg.pinv(sum(precisions), rcond=1e-10, hermitian=True) @ sum(
+            w @ t for w, t in zip(precisions, thetas))
+        stat = float(sum((t - mean) @ w @ (t - mean) for w, t in zip(precisions, thetas)))
+        log10_p = float(chi2.logsf(stat, max(1, pooled.size * (len(solved) - 1)))
+                        / np.log(10.0))
+        varies = bool(change > 0 and log10_p < level)
+        out[split] = {"change": change, "log10_p": log10_p, "parts": len(solved),
+                      "varies": varies}
+        if (varies, change) > (worst["varies"], worst["change"]):
+            worst = {"change": change, "log10_p": log10_p, "varies": varies, "split": split}
+    return {**worst, "splits": out}
 
 
 def _standard_errors(fit, name, model):
@@ -279,8 +301,8 @@ def analyse(trajectory, config=None, *, rng=None):
         named.append((name, evidence))
     dropped = []
     if selected and current.how == "regression":
-        # a force term whose coefficients change over time only soaks up part of an effect of
-        # another form (oscillating in time, depending on where the sheet is, nonlinear)
+        # a force term whose coefficients change over time or across the sheet only soaks up
+        # part of an effect of another form (oscillating in time, a field, nonlinear)
         for name, evidence in named:
             if len(current.term(name)) > MAX_CONSTANCY_COEFFICIENTS:
                 continue
@@ -289,8 +311,9 @@ def analyse(trajectory, config=None, *, rng=None):
             evidence["constancy"] = steady
             if steady["varies"] and steady["change"] > settings["constancy_max"]:
                 dropped.append({"name": name, "constancy": steady,
-                                "reason": "its coefficients change over time: it soaks up "
-                                          "part of an effect of another form"})
+                                "reason": "its coefficients change over time or across the "
+                                          "sheet: it soaks up part of an effect of another "
+                                          "form"})
         if dropped:
             gone = {d["name"] for d in dropped}
             named = [(n, e) for n, e in named if n not in gone]

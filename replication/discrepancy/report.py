@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from replication.discrepancy.outside import SWEEP_CSV, rows_from_gathered, summarise
 from replication.report import Section, SummaryRow, fmt
+from replication.testdata import cloth_outside as og
 
 BEYOND = "beyond the paper"
 
@@ -68,18 +69,19 @@ def outside_section(result):
         "| kind | expected answer | datasets | exact (all) | above limit | exact above limit |",
         "|---|---|---|---|---|---|",
     ]
-    expected = result.get("expected_by_kind", {})
+    expected = {kind: spec["expected"] for kind, spec in og.KINDS.items()}
     for kind, k in s["by_kind"].items():
         lines.append(f"| {kind} | {expected.get(kind, '')} | {k['n_all']} | "
                      f"{_pct(k['exact_all'])} | {k['n_above']} | {_pct(k['exact_above'])} |")
-    wrong = [r for r in result["datasets"] if not r["exact"] and r["min_snr"] >= limit]
+    # result.json stores an infinite SNR (noise-free data) as the string "inf"
+    wrong = [r for r in result["datasets"] if not r["exact"] and float(r["min_snr"]) >= limit]
     if wrong:
         lines += ["", "Wrong answers above the detection limit (hidden -> called):", ""]
         for r in wrong:
             hidden = ", ".join(r["kinds"]) or "none"
             called = ", ".join(r["named"]) or "none"
             lines.append(f"- {hidden} (noise {r['noise_h']:.2g} h, {r['n_frames']} frames, "
-                         f"SNR {fmt(r['min_snr'], 3)}) -> {called}"
+                         f"SNR {fmt(float(r['min_snr']), 3)}) -> {called}"
                          f"{' + unexplained' if r['unexplained'] else ''}")
     lines += ["", f"![outside blind study]({result['figure']})" if result.get("figure") else "",
               "", "Regenerate: `replicate experiment=discrepancy_outside force=true`."]

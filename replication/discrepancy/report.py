@@ -19,6 +19,19 @@ def _goal(text, ok):
     return f"{text} (goal {'met' if ok else 'not met'})"
 
 
+def _by_composition(rows, limit):
+    """Datasets above the detection limit grouped by what they hide."""
+    above = [r for r in rows if r["kinds"] and float(r["min_snr"]) >= limit]
+    return [("one effect", [r for r in above if len(r["kinds"]) == 1]),
+            ("two library effects", [r for r in above if len(r["kinds"]) == 2
+                                     and not r["expected_unexplained"]]),
+            ("a library effect and an outside one",
+             [r for r in above if len(r["kinds"]) == 2 and r["expected_unexplained"]
+              and r["expected_names"]]),
+            ("two outside effects", [r for r in above if len(r["kinds"]) == 2
+                                     and not r["expected_names"]])]
+
+
 def outside_section(result):
     """The blind study on outside data: exact answers, false names, gap, time."""
     s = result["summary"]
@@ -108,6 +121,9 @@ def outside_section(result):
             f"0 / 0 | {pooled['false_names_effect_free']} / "
             f"{pooled['false_unexplained_effect_free']} |",
             f"| valid datasets refused | 0 | {pooled['refused']} |",
+            *[f"| exact answers above the limit, {label} (n={len(subset)}) | | "
+              f"{_pct(sum(r['exact'] for r in subset) / len(subset)) if subset else 'n/a'} |"
+              for label, subset in _by_composition(pooled_rows, limit)],
             f"| median held-out gap shrink (n={pooled['n_gap_shrink']}) | >= 5x | "
             f"{fmt(pooled['gap_shrink_median'], 3)}x |",
             "", "| kind | datasets | exact (all) | above limit | exact above limit |",

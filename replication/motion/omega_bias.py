@@ -176,8 +176,9 @@ def best_peak(table, omega, centre):
     Returns
     -------
     dict
-        ``found_omega, found_xi, found_eta`` (the peak), ``bias_pct`` (``100 (|omega_peak| / |omega| - 1)``: positive when the peak turns
-        too fast; on a plateau of equal maxima, its middle), ``normalised_pct`` (the
+        ``found_omega, found_xi, found_eta`` (the peak), ``bias_pct``
+        (``100 (|omega_peak| / |omega| - 1)``: positive when the peak turns too fast; on a
+        plateau of equal maxima, its middle), ``normalised_pct`` (the
         same for the maximum of ``F(omega) / |omega|``), ``ties`` (omegas sharing the
         maximum), ``at_edge`` (the maximum at an end of the sweep), ``centre_px``.
     """

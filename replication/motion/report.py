@@ -258,9 +258,11 @@ def accuracy_section(result):
         bias = ", ".join(f"{fmt(r['omega_magnitude_pct_median'], 3)} % at "
                          f"{fmt(r['noise_255'])}/255" for r in paper)
         lines += ["", f"The paper's |omega| (best peak of F) is off by a median of {bias} "
-                  "(positive: too fast): choosing omega by peak height is biased (the sweep "
-                  "step, 0.001, adds at most 0.0005 rad/frame). The refinement removes the "
-                  "bias (see its rows)."]
+                  "(positive: too fast; the sweep step, 0.001, adds at most 0.0005 "
+                  "rad/frame). The bias comes mostly from the image derivatives the votes are "
+                  "built from (spatial filter, frame difference, noise), not from the voting: "
+                  "the section on the omega bias measures each part. The refinement removes "
+                  "the bias (see its rows)."]
     rows = _goal_rows(summary)
     more, extra = _versus_baselines(summary)
     lines += more

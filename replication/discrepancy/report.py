@@ -1,4 +1,5 @@
-"""REPORT.md section of the blind discrepancy study (reads results, computes nothing)."""
+"""REPORT.md sections of the discrepancy studies (read results and the committed sweep CSV;
+no fitting, only counting)."""
 
 from __future__ import annotations
 

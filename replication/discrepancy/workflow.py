@@ -13,8 +13,8 @@ Steps, each a call into a lower module:
    and the effects already named, and keep the one that the held-out rollout and the
    residual structure confirm: ``Q`` above ``q_threshold`` lowered by ``explained_min`` of
    its excess, or ``Q`` ending under the threshold with the BIC agreeing.
-   A named force whose coefficients change over stretches of time is dropped again
-   (:func:`constancy`).
+   A named force whose coefficients change over stretches of time or between halves of
+   the mesh is dropped again (:func:`constancy`).
 4. Structure that the named effects leave (more than ``unexplained_fraction`` of the excess
    ``Q`` of the base model, and ``Q`` above the threshold) is reported as unexplained, with
    when (time windows) and where (mesh patches) it is.
@@ -39,9 +39,11 @@ DEFAULTS = {
     "unexplained_fraction": 0.01, "segments": 4, "constancy_max": 0.2,
 }
 MIN_FRAMES = 60
-# the time-constancy check applies to force terms with at most this many coefficients
+# the constancy check applies to force terms with at most this many coefficients
 # (profiles of mass or stiffness have too many to be solved on a stretch of the data)
 MAX_CONSTANCY_COEFFICIENTS = 4
+# frames per time cluster of the regression's normal equations (as in regression.fit)
+CLUSTER_BLOCK = 5
 # A named effect must improve the held-out rollout by at least this (units of h): on
 # noise-free data, once the right effects are in, what is left is round-off, and a further
 # term can only "improve" it by round-off.
@@ -117,12 +119,13 @@ def constancy(data, trial, name, frames, *, model, segments, alpha):
     columns, slices = regression.design(data, trial.base, plugins, model)
     where = slices[name]
     pooled = trial.term(name)
-    G, hz, labels, _ = regression.cluster_sums(columns, data.target, frames, trial.mask)
+    G, hz, labels, _ = regression.cluster_sums(columns, data.target, frames, trial.mask,
+                                               block=CLUSTER_BLOCK)
     cut = [c for c in np.array_split(np.arange(labels.size), segments) if c.size >= 2]
     parts = {"time": []}
     for clusters in cut:
         theta, cov = regression.iv_solve(G, hz, clusters=clusters, labels=labels)
-        seg = frames[np.isin(frames // 5, labels[clusters])]
+        seg = frames[np.isin(frames // CLUSTER_BLOCK, labels[clusters])]
         rows = np.zeros_like(trial.mask)
         rows[seg] = trial.mask[seg]
         parts["time"].append((theta, cov, rows))
@@ -130,7 +133,8 @@ def constancy(data, trial, name, frames, *, model, segments, alpha):
         parts[split] = []
         for half in (coordinate < 0, coordinate > 0):
             rows = trial.mask & half[None, :]
-            G_h, hz_h, labels_h, _ = regression.cluster_sums(columns, data.target, frames, rows)
+            G_h, hz_h, labels_h, _ = regression.cluster_sums(columns, data.target, frames, rows,
+                                                             block=CLUSTER_BLOCK)
             theta, cov = regression.iv_solve(G_h, hz_h, labels=labels_h)
             parts[split].append((theta, cov, rows))
     out, worst = {}, {"change": 0.0, "log10_p": 0.0, "varies": False}

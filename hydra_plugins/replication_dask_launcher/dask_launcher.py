@@ -1,0 +1,205 @@
+"""A Hydra launcher that runs the jobs of a sweep on a Dask cluster (``distributed``).
+
+``replicate -m hydra/launcher=dask ...`` (``configs/hydra/launcher/dask.yaml``): each job of
+the sweep becomes one Dask task that composes the job's config and runs it through Hydra's
+``run_job`` in a worker process, as the basic launcher would in this one; the
+``JobReturn`` objects come back in the order of the jobs.
+
+``address: null`` starts a ``LocalCluster`` of ``n_workers`` processes on this machine for
+the sweep and closes it after; ``address: tcp://HOST:8786`` (or a scheduler file) uses a
+running cluster (``dask scheduler`` and ``dask worker``, docs/results.md). Workers must see
+the same files at the same path as the machine that submits (a shared file system, the
+repository as the working directory): job configs name relative paths
+(``synthetic_data/...``, ``multirun/NAME``).
+
+Hydra keeps its job state in process-wide singletons, so a worker process runs one job of
+the sweep at a time, however many threads it has; scale with worker processes
+(``dask worker ADDRESS --nworkers N --nthreads 1``).
+
+The jobs done, their rate and the time left show as the suite's other long loops do
+(``progress=`` in the config, :mod:`replication.progress`).
+
+Hydra finds this class because it lives in the ``hydra_plugins`` namespace package; it
+imports every module there at start-up, so ``distributed`` is imported only in
+:meth:`DaskLauncher.launch`.
+"""
+
+import contextlib
+import io
+import os
+import sys
+import threading
+from pathlib import Path
+from typing import Optional, Sequence, Tuple
+
+from hydra.core.singleton import Singleton
+from hydra.core.utils import JobReturn, JobStatus, configure_log, run_job, setup_globals
+from hydra.plugins.launcher import Launcher
+from hydra.types import HydraContext, TaskFunction
+from omegaconf import DictConfig, OmegaConf, open_dict
+
+# one job at a time per worker process (Hydra's HydraConfig and JobRuntime are singletons)
+_ONE_JOB = threading.Lock()
+
+
+class SweepState:
+    """What every job of one sweep needs, sent to each worker once (a plain class: Hydra
+    runs plugin modules before they are in ``sys.modules``, which dataclasses need)."""
+
+    def __init__(self, hydra_context: HydraContext, task_function: TaskFunction,
+                 config: DictConfig, singleton_state: dict, cwd: str) -> None:
+        self.hydra_context = hydra_context
+        self.task_function = task_function
+        self.config = config
+        self.singleton_state = singleton_state
+        self.cwd = cwd
+
+
+class TailedStream(io.TextIOBase):
+    """A text stream that writes through to ``stream`` and keeps the last ``keep``
+    characters written (``tail``)."""
+
+    def __init__(self, stream, keep: int = 4000) -> None:
+        super().__init__()
+        self.stream = stream
+        self.keep = keep
+        self.tail = ""
+
+    def write(self, text: str) -> int:
+        self.stream.write(text)
+        self.tail = (self.tail + text)[-self.keep:]
+        return len(text)
+
+    def flush(self) -> None:
+        self.stream.flush()
+
+    def isatty(self) -> bool:
+        return self.stream.isatty()
+
+    def fileno(self) -> int:
+        return self.stream.fileno()
+
+
+def run_one_job(state: SweepState, overrides: Sequence[str],
+                job_num: int) -> Tuple[JobReturn, str]:
+    """Run one job of the sweep in this (worker) process.
+
+    Returns its ``JobReturn`` and the last lines the job wrote on stderr (the worker's
+    stderr, which the submitting machine does not see unless the cluster is local). A job
+    that exits (``sys.exit``, as ``replicate`` does on a refused config) comes back as a
+    failed ``JobReturn`` holding the ``SystemExit``, which Hydra's sweeper raises in the
+    submitting process once every job is back.
+    """
+    with _ONE_JOB:
+        if os.getcwd() != state.cwd:
+            if not Path(state.cwd).is_dir():
+                raise RuntimeError(
+                    f"dask worker on {os.uname().nodename}: the sweep was submitted from "
+                    f"{state.cwd}, which this worker cannot see; run the workers with the "
+                    "repository at the same path (a shared file system)")
+            os.chdir(state.cwd)  # every job of the sweep wants the same folder
+        Singleton.set_state(state.singleton_state)
+        setup_globals()
+        config = state.hydra_context.config_loader.load_sweep_config(state.config,
+                                                                     list(overrides))
+        with open_dict(config.hydra.job) as job:
+            job.id = f"dask_{job_num}"
+            job.num = job_num
+        stderr = TailedStream(sys.stderr)
+        try:
+            with contextlib.redirect_stderr(stderr):
+                ret = run_job(hydra_context=state.hydra_context,
+                              task_function=state.task_function, config=config,
+                              job_dir_key="hydra.sweep.dir", job_subdir_key="hydra.sweep.subdir")
+        except SystemExit as exit_:
+            status = JobStatus.COMPLETED if exit_.code in (0, None) else JobStatus.FAILED
+            ret = JobReturn(overrides=list(overrides), status=status, _return_value=exit_)
+        return ret, stderr.tail
+
+
+class DaskLauncher(Launcher):
+    """Hydra launcher: each job of a sweep is a task on a Dask cluster.
+
+    Parameters
+    ----------
+    address : str or None
+        Scheduler address (``tcp://HOST:8786``) or path of a scheduler file; ``None``
+        starts a local cluster for the sweep.
+    n_workers : int
+        Worker processes of the local cluster (``address: null`` only).
+    memory_limit : str or None
+        Memory limit of each local worker (Dask's spelling, ``"4GiB"``; ``None``: Dask's
+        default share of the machine's memory).
+    """
+
+    def __init__(self, address: Optional[str] = None, n_workers: int = 2,
+                 memory_limit: Optional[str] = None) -> None:
+        self.address = address
+        self.n_workers = int(n_workers)
+        self.memory_limit = memory_limit
+        self.config: Optional[DictConfig] = None
+        self.task_function: Optional[TaskFunction] = None
+        self.hydra_context: Optional[HydraContext] = None
+
+    def setup(self, *, hydra_context: HydraContext, task_function: TaskFunction,
+              config: DictConfig) -> None:
+        self.config = config
+        self.task_function = task_function
+        self.hydra_context = hydra_context
+
+    def connect(self):
+        """``(client, cluster)``: a ``distributed.Client`` on the configured scheduler and
+        ``None``, or on a new local cluster and that cluster (to close after the sweep)."""
+        from distributed import Client, LocalCluster
+
+        if self.address:
+            address = str(self.address)
+            if address.endswith(".json") and Path(address).is_file():
+                return Client(scheduler_file=address), None
+            return Client(address), None
+        options = {} if self.memory_limit is None else {"memory_limit": self.memory_limit}
+        cluster = LocalCluster(n_workers=self.n_workers, threads_per_worker=1,
+                               processes=True, host="127.0.0.1", dashboard_address=None,
+                               **options)
+        return Client(cluster), cluster
+
+    def launch(self, job_overrides: Sequence[Sequence[str]],
+               initial_job_idx: int) -> Sequence[JobReturn]:
+        assert self.config is not None and self.hydra_context is not None
+        assert self.task_function is not None
+        setup_globals()
+        configure_log(self.config.hydra.hydra_logging, self.config.hydra.verbose)
+        Path(str(self.config.hydra.sweep.dir)).mkdir(parents=True, exist_ok=True)
+        state = SweepState(hydra_context=self.hydra_context, task_function=self.task_function,
+                           config=self.config, singleton_state=Singleton.get_state(),
+                           cwd=os.getcwd())
+        from distributed import as_completed
+
+        from replication.progress import bar, mode_for
+
+        client, cluster = self.connect()
+        try:
+            print(f"dask launcher: {len(job_overrides)} jobs on {client.scheduler.address}",
+                  file=sys.stderr, flush=True)
+            shared = client.scatter(state, hash=False)
+            futures = [client.submit(run_one_job, shared, list(overrides),
+                                     initial_job_idx + offset, pure=False)
+                       for offset, overrides in enumerate(job_overrides)]
+            with mode_for(OmegaConf.select(self.config, "progress")), \
+                    bar(len(futures), "sweep jobs") as jobs:
+                for _ in as_completed(futures):
+                    jobs.update()
+            done = client.gather(futures)
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+        for ret, tail in done:
+            if ret.status == JobStatus.FAILED and isinstance(ret._return_value, SystemExit):
+                # Dask's transport keeps an exception's args but not SystemExit.code
+                ret.return_value = SystemExit(*ret._return_value.args)
+                if cluster is None:  # a remote worker's stderr: show why the job stopped
+                    lines = tail.rstrip("\n").splitlines()[-10:]
+                    print("\n".join(lines), file=sys.stderr, flush=True)
+        return [ret for ret, _ in done]
+

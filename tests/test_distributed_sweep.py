@@ -1,0 +1,154 @@
+"""Sweeps through distributed engines gather to the serial sweep's CSV.
+
+The same small sweep (the paper's EA on the tau = 0.5 reference, 300 evaluations, seeds 0 to
+2: seed-dependent floating-point answers, about a second per run) runs serially, through
+hydra-submitit-launcher's ``submitit_local`` (one process per job, the code path of
+``submitit_slurm``), and through the suite's Dask launcher (``hydra/launcher=dask``), once on
+a cluster this test starts with the commands docs/results.md gives for a real one
+(``dask scheduler``, ``dask worker``, both on 127.0.0.1, 2 worker processes of one thread)
+and once on the local cluster the launcher starts itself. ``replicate-gather`` must give the
+same CSV each time, except the columns in ``VARIES``. A sweep with a refused job ends with
+status 2 on the Dask launcher, as it does serially.
+
+Marked ``distributed`` (``pytest -m "not distributed"`` leaves it out): 40 to 50 s on two
+busy cores."""
+
+import csv
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from replication.sweep import main as gather_main
+from tests.test_cli import ROOT, run_cli
+
+pytestmark = pytest.mark.distributed
+
+SWEEP = ["experiment=cloth_identify", "method=paper_ea", "budget=300", "seed=0,1,2"]
+# wall_seconds is each run's measured time, never the same twice; every other column (the
+# run folder, overrides, seed, every number of the answer) must match exactly
+VARIES = {"wall_seconds"}
+
+
+def run_sweep(folder, *launcher):
+    """Run the sweep into ``folder`` with the given launcher overrides; returns its stderr."""
+    done = run_cli("-m", *SWEEP, *launcher, f"hydra.sweep.dir={folder}")
+    assert done.returncode == 0, done.stderr[-3000:]
+    return done.stderr
+
+
+def gathered(folder):
+    """``replicate-gather`` of the sweep in ``folder``: (header, rows) of its CSV, rows
+    without the ``VARIES`` columns."""
+    assert gather_main([str(folder)]) == 0
+    with open(folder / "results.csv", newline="") as handle:
+        reader = csv.DictReader(handle)
+        rows = list(reader)
+    assert len(rows) == 3 and all(float(row["wall_seconds"]) > 0 for row in rows)
+    return reader.fieldnames, [{k: v for k, v in row.items() if k not in VARIES}
+                               for row in rows]
+
+
+@pytest.fixture(scope="module")
+def serial(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("serial") / "sweep"
+    run_sweep(folder)
+    return gathered(folder)
+
+
+def _dask_command(name):
+    script = shutil.which("dask", path=str(Path(sys.executable).parent)) or \
+        shutil.which("dask")
+    assert script, "the dask command (package dask) is not installed"
+    return [script, name]
+
+
+@pytest.fixture(scope="module")
+def dask_cluster(tmp_path_factory):
+    """A scheduler and 2 one-thread workers on 127.0.0.1, started as a user would on real
+    machines; yields the scheduler file the launcher is pointed at and its address."""
+    tmp_path = tmp_path_factory.mktemp("dask")
+    scheduler_file = tmp_path / "scheduler.json"
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    processes, logs = [], []
+
+    def start(command):
+        logs.append(open(tmp_path / f"{command[1]}.log", "w"))
+        processes.append(subprocess.Popen(command, cwd=ROOT, env=env, stdout=logs[-1],
+                                          stderr=subprocess.STDOUT, start_new_session=True))
+
+    try:
+        start(_dask_command("scheduler") + [
+            "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+            "--scheduler-file", str(scheduler_file)])
+        deadline = time.time() + 60
+        while not scheduler_file.exists() and time.time() < deadline:
+            time.sleep(0.1)
+        start(_dask_command("worker") + [
+            "--scheduler-file", str(scheduler_file), "--host", "127.0.0.1",
+            "--nworkers", "2", "--nthreads", "1", "--no-dashboard",
+            "--local-directory", str(tmp_path / "dask-worker")])
+        from distributed import Client
+
+        with Client(scheduler_file=str(scheduler_file), timeout=60) as client:
+            client.wait_for_workers(2, timeout=60)
+            address = client.scheduler.address
+        yield scheduler_file, address
+    finally:
+        for process in reversed(processes):  # the workers first, then the scheduler
+            try:
+                os.killpg(process.pid, signal.SIGTERM)
+                process.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                os.killpg(process.pid, signal.SIGKILL)
+                process.wait()
+            except ProcessLookupError:
+                pass
+        for log in logs:
+            log.close()
+
+
+def test_submitit_local_sweep_gathers_to_the_serial_csv(tmp_path, serial):
+    folder = tmp_path / "sweep"
+    run_sweep(folder, "hydra/launcher=local")
+    assert (folder / ".submitit").is_dir()  # the jobs did go through submitit
+    assert gathered(folder) == serial
+
+
+def test_dask_sweep_on_a_running_cluster_gathers_to_the_serial_csv(tmp_path, serial,
+                                                                    dask_cluster):
+    scheduler_file, address = dask_cluster
+    folder = tmp_path / "sweep"
+    err = run_sweep(folder, "hydra/launcher=dask", f"hydra.launcher.address={scheduler_file}")
+    assert f"dask launcher: 3 jobs on {address}" in err
+    assert gathered(folder) == serial
+
+
+def test_dask_sweep_on_its_own_local_cluster_gathers_to_the_serial_csv(tmp_path, serial):
+    folder = tmp_path / "sweep"
+    err = run_sweep(folder, "hydra/launcher=dask")
+    assert "dask launcher: 3 jobs on tcp://127.0.0.1:" in err
+    assert gathered(folder) == serial
+
+
+def test_dask_sweep_with_a_failing_job_exits_2_and_keeps_the_other_jobs(tmp_path,
+                                                                      dask_cluster):
+    """A refused job (README.md is no trajectory) fails the sweep with the job's one error
+    line and status 2, as the serial sweep does; unlike it, the other jobs still run."""
+    scheduler_file, _ = dask_cluster
+    folder = tmp_path / "sweep"
+    done = run_cli("-m", "experiment=cloth_identify", "method=paper_ea", "budget=50",
+                   "data.path=README.md,synthetic_data/cloth/reference_tau0.5.npz",
+                   "hydra/launcher=dask", f"hydra.launcher.address={scheduler_file}",
+                   f"hydra.sweep.dir={folder}")
+    assert done.returncode == 2, done.stderr[-3000:]
+    assert "error: README.md: cannot be read" in done.stderr
+    runs = [p.parent.relative_to(folder).as_posix() for p in folder.rglob("result.json")]
+    assert runs == ["budget=50,data.path=synthetic_data/cloth/reference_tau0.5.npz,"
+                    "method=paper_ea"]
+    assert not (folder / "budget=50,data.path=README.md,method=paper_ea").exists()

@@ -2,7 +2,9 @@
 
 One row per run: the run folder, the experiment, the seed, the sweep's overrides (from the
 folder name that Hydra's ``override_dirname`` gives) and every numeric leaf of the result
-outside ``config`` and ``versions``, flattened with dots (``metrics.spring_updates...``).
+outside ``config`` and ``versions``, flattened with dots (``metrics.spring_updates...``),
+with the run's ``provenance`` (``provenance.config_sha256``, ``provenance.code_sha256``,
+``provenance.inputs_sha256.PATH``), so that a committed CSV can be checked for staleness.
 
 Plots: one PNG per metric in the sweep folder, the metric against one swept override (the
 x axis, numeric when its values are numbers), one line per combination of the other
@@ -23,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-SKIP = {"config", "versions", "provenance"}
+SKIP = {"config", "versions"}
 PREFIX = "override."
 SEED = PREFIX + "seed"
 
@@ -104,6 +106,40 @@ def gather(sweep_dir, results=None):
         row.update(flatten({k: v for k, v in result.items() if k not in SKIP}))
         rows.append(row)
     return rows
+
+
+def cell_value(text):
+    """A cell of a gathered CSV back as a number, bool, ``None`` (empty) or string.
+
+    Parameters
+    ----------
+    text : str or None
+    """
+    if text in ("", None):
+        return None
+    if text in ("True", "False"):
+        return text == "True"
+    try:
+        number = float(text)
+    except ValueError:
+        return text
+    return int(number) if number.is_integer() and math.isfinite(number) else number
+
+
+def read_gathered(path):
+    """The rows of a gathered CSV (as :func:`main` writes it) as dicts of typed cells
+    (:func:`cell_value`); ``[]`` when the file does not exist.
+
+    Parameters
+    ----------
+    path : str or Path
+    """
+    path = Path(path)
+    if not path.is_file():
+        return []
+    with open(path, newline="") as handle:
+        return [{key: cell_value(value) for key, value in line.items()}
+                for line in csv.DictReader(handle)]
 
 
 def configured_metrics(results):

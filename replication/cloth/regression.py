@@ -55,6 +55,12 @@ BIG_TAU = 1e9
 HAC_LAGS = 2
 MASK_MARGIN = 0.25  # of the stretch tau: the mask stays conservative while tau is rough
 SMOOTH_WINDOWS = (0, 31)
+# A fit whose rest lengths fall below this share of the recorded lengths may sit in the
+# cost's wrong valley (too soft, too short, large tau): the rounds are run again from
+# starts these many times stiffer (until one ends out of the valley), and the fit with the
+# smallest one-step residuals is kept.
+VALLEY_REST = 0.9
+VALLEY_STIFFER = (2.0, 4.0, 8.0)
 
 
 class Data(NamedTuple):
@@ -607,10 +613,11 @@ def fit(data, frames, plugins=(), *, model="5", rounds=3, block=5,
                    else make_start(data, frames, plugins, model, smooth_windows))
         if started is None:
             continue
-        fitted = _rounds(data, frames, plugins, started, model=model, rounds=rounds,
-                         block=block, min_rows_per_coefficient=min_rows_per_coefficient)
+        options = {"model": model, "rounds": rounds, "block": block,
+                   "min_rows_per_coefficient": min_rows_per_coefficient}
+        fitted = _rounds(data, frames, plugins, started, **options)
         if fitted is not None:
-            return fitted
+            return _out_of_valley(data, frames, plugins, started, fitted, options)
     # nothing outside the constraint to regress on: fit through it
     return fit_through_constraint(data, frames, plugins, model=model)
 
@@ -638,6 +645,40 @@ def _rounds(data, frames, plugins, started, *, model, rounds, block,
         base = base_from_theta(theta[:nb], model, base.tau)
         base = base._replace(tau=np.full(N_TYPES, search_tau(for_tau, base, terms, frames)))
         best = Fit(base, terms, theta, cov, mask, "regression")
+    return best
+
+
+def _out_of_valley(data, frames, plugins, started, fitted, options):
+    """``fitted``, or the rounds from a stiffer start when those end with smaller one-step
+    residuals on ``frames``. A start that is too soft (noise and the constraint both bias
+    a start's stiffness down) can lead the rounds into the wrong valley; the check runs
+    only when the rest lengths came out well below the recorded ones (:data:`VALLEY_REST`),
+    and tries the starts of :data:`VALLEY_STIFFER` in turn until one ends out of it.
+    """
+    typical = VALLEY_REST * typical_lengths(data)
+
+    def in_valley(candidate):
+        return bool(np.any(candidate.base.rest < typical))
+
+    def cost(candidate):
+        r = residuals(data, candidate.base, candidate.terms, frames)[:, data.free]
+        total = float(np.sum(r ** 2))
+        return total if np.isfinite(total) else np.inf
+
+    if not in_valley(fitted):
+        return fitted
+    base, terms = started
+    best, best_cost = fitted, cost(fitted)
+    for factor in VALLEY_STIFFER:
+        other = _rounds(data, frames, plugins, (base._replace(k=base.k * factor), terms),
+                        **options)
+        if other is None:
+            continue
+        other_cost = cost(other)
+        if other_cost < best_cost:
+            best, best_cost = other, other_cost
+        if not in_valley(other):
+            break
     return best
 
 

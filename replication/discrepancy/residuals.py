@@ -87,7 +87,7 @@ def window_sums(r, frames, window, mask=None):
 
 
 def structure(r, frames, free, n, *, window=10, patch=4, directions=None, floor=0.0,
-              mask=None):
+              mask=None, sigma=None):
     """Structure statistic ``Q`` of residuals and its break-downs.
 
     Parameters
@@ -113,7 +113,7 @@ def structure(r, frames, free, n, *, window=10, patch=4, directions=None, floor=
     """
     if mask is not None and not np.any(mask):
         mask = None   # a fit through the constraint has no mask: use everything
-    sigma = max(noise_sigma(r, frames, free, mask), floor)
+    sigma = max(noise_sigma(r, frames, free, mask) if sigma is None else sigma, floor)
     sums, starts, complete = window_sums(r, frames, window, mask)
     labels = patch_labels(n, patch)[free]
     n_patch = labels.max() + 1

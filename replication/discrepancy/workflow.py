@@ -36,7 +36,8 @@ DEFAULTS = {
     "model": "5", "holdout_block": 25, "holdout_every": 4, "window": 10, "patch": 4,
     "alpha": 1e-3, "n_subsamples": 20, "stability_min": 0.5, "q_threshold": 3.0,
     "explained_min": 0.5, "max_candidates": 2, "max_effects": 3,
-    "unexplained_fraction": 0.01, "segments": 4, "constancy_max": 0.2,
+    "unexplained_fraction": 0.01, "segments": 4, "constancy_max": 0.4,
+    "power_min": 0.2, "reselect": 0,
 }
 MIN_FRAMES = 60
 # the constancy check applies to force terms with at most this many coefficients
@@ -60,25 +61,20 @@ def settings_from(config):
     for key in ("holdout_block", "holdout_every", "window", "patch"):
         if int(settings[key]) < 2:
             raise InputError(f"discrepancy.{key}={settings[key]}: expected an integer >= 2")
+    if int(settings["reselect"]) < 0:
+        raise InputError(f"discrepancy.reselect={settings['reselect']}: expected an integer "
+                         ">= 0")
+    settings["reselect"] = int(settings["reselect"])
     for key in ("n_subsamples", "max_candidates", "max_effects", "segments"):
         if int(settings[key]) < 1:
             raise InputError(f"discrepancy.{key}={settings[key]}: expected an integer >= 1")
     for key in ("alpha", "stability_min", "explained_min", "unexplained_fraction",
-                "constancy_max"):
+                "constancy_max", "power_min"):
         if not 0 < float(settings[key]) <= 1:
             raise InputError(f"discrepancy.{key}={settings[key]}: expected 0 < value <= 1")
     if float(settings["q_threshold"]) <= 0:
         raise InputError(f"discrepancy.q_threshold={settings['q_threshold']}: expected > 0")
     return settings
-
-
-def _q(data, fit, frames, settings, mask):
-    """Structure ``Q`` of a fit's residuals on ``frames`` outside the constraint (``mask``
-    (T, P): one mask, the base fit's, so that every model is measured on the same data)."""
-    r = residuals(data, fit, frames)
-    return structure(r, frames, data.free, data.ops.n, window=settings["window"],
-                     patch=settings["patch"], floor=SIGMA_FLOOR_H * data.h,
-                     mask=mask[frames])["Q"], r
 
 
 def _bic_delta(r0, r1, extra_params):
@@ -88,23 +84,143 @@ def _bic_delta(r0, r1, extra_params):
     return float(n * np.log(s1 / s0) + extra_params * np.log(n))
 
 
-def _quick_q(data, fit, frames, settings, name, score, model, mask):
-    """Q of the candidate's IV solution (no refit): ranks the candidates cheaply."""
+def _quick_q(data, fit, frames, settings, name, score, model, mask, sigma):
+    """Q (against ``sigma``) of the candidate's IV solution (no refit): ranks the
+    candidates cheaply."""
     base = regression.base_from_theta(score["base_theta"], model, fit.base.tau)
     terms = list(fit.terms) + [(fx.get_effect(name), np.asarray(score["theta"]))]
     trial = regression.Fit(base, terms, None, None, fit.mask, "regression")
-    return _q(data, trial, frames, settings, mask)[0]
+    return _scaled_q(data, residuals(data, trial, frames), frames, settings, mask, sigma)[0]
+
+
+def _scaled_q(data, r, frames, settings, mask, sigma=None):
+    """``(Q, sigma)`` of residuals ``r`` on ``frames``, against ``sigma`` when given (else
+    the noise estimated from ``r``), over the particle-frames of ``mask``."""
+    out = structure(r, frames, data.free, data.ops.n, window=settings["window"],
+                    patch=settings["patch"], floor=SIGMA_FLOOR_H * data.h, mask=mask[frames],
+                    sigma=sigma)
+    return out["Q"], out["sigma"]
+
+
+def _power(data, r, frames, mask):
+    """Mean square of residuals ``r`` over free particles of the particle-frames in
+    ``mask`` (all of them for a fit through the constraint, which has no mask)."""
+    use = mask[frames] & data.free[None, :]
+    if not np.any(use):
+        use = np.broadcast_to(data.free[None, :], use.shape)
+    return float(np.mean(r[use] ** 2))
+
+
+def _state(context, names, base_fit):
+    """Fit, held-out gap, residuals and noise scale of the base model plus ``names``."""
+    data, frames, mask = context["data"], context["frames"], context["mask"]
+    fit = (regression.fit(data, context["train"], [fx.get_effect(n) for n in names],
+                          model=context["model"]) if names else base_fit)
+    r = residuals(data, fit, frames)
+    return {"fit": fit, "r": r,
+            "sigma": _scaled_q(data, r, frames, context["settings"], mask)[1],
+            "gap": {"rollout": rollout_error(data, fit, context["held"],
+                                             start=context["start"]),
+                    "one_step": one_step_error(data, fit, context["held"])}}
+
+
+def _forward(context, state, banned, tried, rounds, attempt):
+    """Forward selection from the base model ``state``: name library effects (not in
+    ``banned``) one at a time while one is confirmed. Appends to ``tried`` and ``rounds``;
+    returns ``(named, state)``, ``named`` a list of ``(name, evidence)``.
+
+    Every comparison of a trial with the current model measures both on one noise scale,
+    the smaller of their two estimates (the estimate from a worse model's residuals is
+    off by its structure). A trial is confirmed when it improves the held-out rollout and
+    either removes ``explained_min`` of a structure above ``q_threshold`` (strong), leaves
+    ``Q`` under the threshold with the BIC agreeing (weak), or, for a force term that the
+    constancy check can test, removes ``power_min`` of the excess one-step residual power
+    over the noise (6 sigma^2) while ``Q`` is above the threshold (power: ``Q`` weighs
+    slow, coherent structure, so beside a larger effect that the library does not describe
+    a library effect whose error changes from step to step, a stiffness or a damping, can
+    lower the residual power much and ``Q`` little).
+    """
+    data, frames, mask = context["data"], context["frames"], context["mask"]
+    settings, model = context["settings"], context["model"]
+    threshold = settings["q_threshold"]
+    selected, named = [], []
+    while len(selected) < settings["max_effects"]:
+        # below the structure threshold a candidate may still be named: the Wald test is a
+        # matched filter, more sensitive than Q to an effect of the library's form
+        scores = score_candidates(data, state["fit"], context["train"], selected=selected,
+                                  model=model, alpha=settings["alpha"],
+                                  n_subsamples=settings["n_subsamples"], rng=context["rng"])
+        scores = {name: s for name, s in scores.items() if name not in banned}
+        rounds.append(scores)
+        eligible = [name for name, s in scores.items()
+                    if s["significant"] and s["stability"] >= settings["stability_min"]]
+        if not eligible:
+            break
+        quick = {name: _quick_q(data, state["fit"], frames, settings, name,
+                                scores[name], model, mask, state["sigma"])
+                 for name in eligible}
+        for name in eligible:
+            scores[name]["Q_quick"] = quick[name]
+        ranked = sorted(eligible, key=lambda name: quick[name])[:settings["max_candidates"]]
+        strongest = min(eligible, key=lambda name: scores[name]["log10_p"])
+        ranked += [strongest] if strongest not in ranked else []
+        best = None
+        for name in ranked:
+            trial = _state(context, selected + [name], state["fit"])
+            sigma = min(state["sigma"], trial["sigma"])
+            q_before = _scaled_q(data, state["r"], frames, settings, mask, sigma)[0]
+            q_after = _scaled_q(data, trial["r"], frames, settings, mask, sigma)[0]
+            # one scale for ranking the trials of this step: the current model's
+            q_rank = _scaled_q(data, trial["r"], frames, settings, mask, state["sigma"])[0]
+            explained = (q_before - q_after) / max(q_before - 1.0, 1e-12)
+            p_before, p_after = (_power(data, r, frames, mask) for r in (state["r"], trial["r"]))
+            explained_power = (p_before - p_after) / max(p_before - 6.0 * sigma ** 2, 1e-300)
+            evidence = {
+                "wald": scores[name]["wald"], "threshold": scores[name]["threshold"],
+                "log10_p": scores[name]["log10_p"], "stability": scores[name]["stability"],
+                "Q_before": q_before, "Q_after": q_after, "explained_fraction": explained,
+                "explained_power": explained_power,
+                "heldout_rollout_before": state["gap"]["rollout"],
+                "heldout_rollout_after": trial["gap"]["rollout"],
+                "heldout_one_step_before": state["gap"]["one_step"],
+                "heldout_one_step_after": trial["gap"]["one_step"],
+                "delta_bic": _bic_delta(state["r"][:, data.free], trial["r"][:, data.free],
+                                        scores[name]["df"]),
+                "fit": trial["fit"].how, "pass": attempt,
+            }
+            testable = (trial["fit"].how == "regression"
+                        and len(trial["fit"].term(name)) <= MAX_CONSTANCY_COEFFICIENTS)
+            above = q_before > threshold
+            how = ("strong" if above and explained >= settings["explained_min"] else
+                   "weak" if q_after <= threshold and evidence["delta_bic"] < 0 else
+                   "power" if above and testable and explained_power >= settings["power_min"]
+                   else None)
+            evidence["confirmed_as"] = how
+            confirmed = bool(how is not None and trial["gap"]["rollout"]
+                             < state["gap"]["rollout"] - MIN_GAIN_H)
+            tried.append({"name": name, "step": len(selected), "pass": attempt,
+                          "confirmed": confirmed, "evidence": evidence})
+            if confirmed and (best is None or q_rank < best[1]):
+                best = (name, q_rank, trial, evidence)
+        if best is None:
+            break
+        name, _, state, evidence = best
+        selected.append(name)
+        named.append((name, evidence))
+    return named, state
 
 
 def constancy(data, trial, name, frames, *, model, segments, alpha):
     """Does the term ``name`` of ``trial`` hold the same coefficients over time and space?
 
-    The joint model (base and every term, at the trial's ``tau`` and constraint mask) is
-    solved again on parts of the data: ``segments`` consecutive stretches of ``frames``, the
-    two halves of the mesh along ``j`` and the two halves along ``i``. A constant-coefficient
-    effect of the right form gives the same force in every part, up to noise; a library term
-    that only soaks up part of an effect of another form (a force that oscillates in time, a
-    field that changes across the sheet, a nonlinear spring) changes from part to part.
+    The joint model (base and every term, at the trial's ``tau`` and constraint mask; terms
+    with more than :data:`MAX_CONSTANCY_COEFFICIENTS`, the profiles, held at their pooled
+    values) is solved again on parts of the data: ``segments`` consecutive stretches of
+    ``frames``, the two halves of the mesh along ``j`` and the two halves along ``i``. A
+    constant-coefficient effect of the right form gives the same force in every part, up to
+    noise; a library term that only soaks up part of an effect of another form (a force that
+    oscillates in time, a field that changes across the sheet, a nonlinear spring) changes
+    from part to part.
 
     Returns
     -------
@@ -117,14 +233,33 @@ def constancy(data, trial, name, frames, *, model, segments, alpha):
     """
     plugins = [plugin for plugin, _ in trial.terms]
     columns, slices = regression.design(data, trial.base, plugins, model)
-    where = slices[name]
+    # profiles (more coefficients than a part of the data solves well) are held at their
+    # pooled values: only the base model and the small terms are solved again per part
+    held = [other for other, cut in slices.items()
+            if other != name and cut.stop - cut.start > MAX_CONSTANCY_COEFFICIENTS]
+    fixed = np.array([k for other in held for k in range(slices[other].start,
+                                                          slices[other].stop)], dtype=int)
+    solved = np.setdiff1d(np.arange(columns.shape[-1]), fixed)
+    values = (np.concatenate([trial.term(other) for other in held]) if held
+              else np.zeros(0))
+    where = np.searchsorted(solved, np.arange(slices[name].start, slices[name].stop))
     pooled = trial.term(name)
-    G, hz, labels, _ = regression.cluster_sums(columns, data.target, frames, trial.mask,
-                                               block=CLUSTER_BLOCK)
-    cut = [c for c in np.array_split(np.arange(labels.size), segments) if c.size >= 2]
+
+    def solve(rows, clusters=None):
+        G, hz, labels, _ = regression.cluster_sums(columns, data.target, frames, rows,
+                                                   block=CLUSTER_BLOCK)
+        hz = hz[:, solved] - G[np.ix_(np.arange(G.shape[0]), solved, fixed)] @ values
+        G = G[np.ix_(np.arange(G.shape[0]), solved, solved)]
+        if clusters is None:
+            return regression.iv_solve(G, hz, labels=labels)
+        return [regression.iv_solve(G, hz, clusters=c, labels=labels) for c in clusters(labels)]
+
+    def stretches(labels):
+        return [c for c in np.array_split(np.arange(labels.size), segments) if c.size >= 2]
+
+    labels = np.unique(np.asarray(frames) // CLUSTER_BLOCK)
     parts = {"time": []}
-    for clusters in cut:
-        theta, cov = regression.iv_solve(G, hz, clusters=clusters, labels=labels)
+    for clusters, (theta, cov) in zip(stretches(labels), solve(trial.mask, stretches)):
         seg = frames[np.isin(frames // CLUSTER_BLOCK, labels[clusters])]
         rows = np.zeros_like(trial.mask)
         rows[seg] = trial.mask[seg]
@@ -133,21 +268,20 @@ def constancy(data, trial, name, frames, *, model, segments, alpha):
         parts[split] = []
         for half in (coordinate < 0, coordinate > 0):
             rows = trial.mask & half[None, :]
-            G_h, hz_h, labels_h, _ = regression.cluster_sums(columns, data.target, frames, rows,
-                                                             block=CLUSTER_BLOCK)
-            theta, cov = regression.iv_solve(G_h, hz_h, labels=labels_h)
+            theta, cov = solve(rows)
             parts[split].append((theta, cov, rows))
     out, worst = {}, {"change": 0.0, "log10_p": 0.0, "varies": False}
     level = np.log10(alpha / len(parts))
-    for split, solved in parts.items():
-        if len(solved) < 2:
+    for split, results in parts.items():
+        if len(results) < 2:
             continue
         thetas, precisions, change = [], [], 0.0
-        for theta, cov, rows in solved:
+        for theta, cov, rows in results:
             part = theta[where]
             thetas.append(part)
-            precisions.append(np.linalg.pinv(cov[where, where], rcond=1e-10, hermitian=True))
-            cols = columns[..., where][rows]
+            precisions.append(np.linalg.pinv(cov[np.ix_(where, where)], rcond=1e-10,
+                                             hermitian=True))
+            cols = columns[..., slices[name]][rows]
             reference = float(np.sqrt(np.mean((cols @ pooled) ** 2))) if cols.size else 0.0
             if reference > 0:
                 change = max(change, float(np.sqrt(np.mean((cols @ (part - pooled)) ** 2)))
@@ -155,10 +289,10 @@ def constancy(data, trial, name, frames, *, model, segments, alpha):
         mean = np.linalg.pinv(sum(precisions), rcond=1e-10, hermitian=True) @ sum(
             w @ t for w, t in zip(precisions, thetas))
         stat = float(sum((t - mean) @ w @ (t - mean) for w, t in zip(precisions, thetas)))
-        log10_p = float(chi2.logsf(stat, max(1, pooled.size * (len(solved) - 1)))
+        log10_p = float(chi2.logsf(stat, max(1, pooled.size * (len(results) - 1)))
                         / np.log(10.0))
         varies = bool(change > 0 and log10_p < level)
-        out[split] = {"change": change, "log10_p": log10_p, "parts": len(solved),
+        out[split] = {"change": change, "log10_p": log10_p, "parts": len(results),
                       "varies": varies}
         if (varies, change) > (worst["varies"], worst["change"]):
             worst = {"change": change, "log10_p": log10_p, "varies": varies, "split": split}
@@ -240,98 +374,54 @@ def analyse(trajectory, config=None, *, rng=None):
     base_fit = regression.fit(data, train, model=model)
     mask = base_fit.mask
     located = where(data, base_fit, frames, window=settings["window"], patch=settings["patch"])
-    q_before = located["Q"]
     before = {how: rollout_error(data, base_fit, held, start=how) for how in STARTS}
     start = min(STARTS, key=lambda how: before[how])
     gap_before = {"rollout": before[start], "one_step": one_step_error(data, base_fit, held),
                   "rollout_start": start}
-    selected, named, tried, rounds = [], [], [], []
-    current, q_current, gap_current = base_fit, q_before, gap_before
-    _, r_current = _q(data, current, frames, settings, mask)
-    while len(selected) < settings["max_effects"]:
-        # below the structure threshold a candidate may still be named: the Wald test is a
-        # matched filter, more sensitive than Q to an effect of the library's form
-        scores = score_candidates(data, current, train, selected=selected, model=model,
-                                  alpha=settings["alpha"],
-                                  n_subsamples=settings["n_subsamples"], rng=rng)
-        rounds.append(scores)
-        eligible = [name for name, s in scores.items()
-                    if s["significant"] and s["stability"] >= settings["stability_min"]]
-        if not eligible:
+    state = {"fit": base_fit, "gap": gap_before, "r": residuals(data, base_fit, frames)}
+    state["sigma"] = _scaled_q(data, state["r"], frames, settings, mask)[1]
+    context = {"data": data, "train": train, "held": held, "frames": frames, "mask": mask,
+               "settings": settings, "model": model, "rng": rng, "start": start}
+    tried, rounds, dropped, banned = [], [], [], set()
+    for attempt in range(settings["reselect"] + 1):
+        named, current = _forward(context, state, banned, tried, rounds, attempt)
+        if not named or current["fit"].how != "regression":
             break
-        quick = {name: _quick_q(data, current, frames, settings, name,
-                                scores[name], model, mask) for name in eligible}
-        for name in eligible:
-            scores[name]["Q_quick"] = quick[name]
-        ranked = sorted(eligible, key=lambda name: quick[name])[:settings["max_candidates"]]
-        strongest = min(eligible, key=lambda name: scores[name]["log10_p"])
-        ranked += [strongest] if strongest not in ranked else []
-        best = None
-        for name in ranked:
-            trial = regression.fit(data, train, [fx.get_effect(n) for n in selected + [name]],
-                                   model=model)
-            q_after, r_after = _q(data, trial, frames, settings, mask)
-            gap_trial = {"rollout": rollout_error(data, trial, held, start=start),
-                         "one_step": one_step_error(data, trial, held)}
-            excess = max(q_current - 1.0, 1e-12)
-            explained = (q_current - q_after) / excess
-            evidence = {
-                "wald": scores[name]["wald"], "threshold": scores[name]["threshold"],
-                "log10_p": scores[name]["log10_p"], "stability": scores[name]["stability"],
-                "Q_before": q_current, "Q_after": q_after, "explained_fraction": explained,
-                "heldout_rollout_before": gap_current["rollout"],
-                "heldout_rollout_after": gap_trial["rollout"],
-                "heldout_one_step_before": gap_current["one_step"],
-                "heldout_one_step_after": gap_trial["one_step"],
-                "delta_bic": _bic_delta(r_current[:, data.free], r_after[:, data.free],
-                                        scores[name]["df"]),
-                "fit": trial.how,
-            }
-            # strong: removes most of a structure above the threshold; weak (the structure
-            # was already under it, or ends under it): the BIC must agree too
-            strong = (q_current > settings["q_threshold"]
-                      and explained >= settings["explained_min"])
-            weak = q_after <= settings["q_threshold"] and evidence["delta_bic"] < 0
-            confirmed = bool(gap_trial["rollout"] < gap_current["rollout"] - MIN_GAIN_H
-                             and (strong or weak))
-            tried.append({"name": name, "step": len(selected), "confirmed": confirmed,
-                          "evidence": evidence})
-            if confirmed and (best is None or q_after < best[1]):
-                best = (name, q_after, trial, gap_trial, r_after, evidence)
-        if best is None:
-            break
-        name, q_current, current, gap_current, r_current, evidence = best
-        selected.append(name)
-        named.append((name, evidence))
-    dropped = []
-    if selected and current.how == "regression":
-        # a force term whose coefficients change over time or across the sheet only soaks up
-        # part of an effect of another form (oscillating in time, a field, nonlinear)
+        # a force term whose coefficients change over time or across the sheet only soaks
+        # up part of an effect of another form (oscillating in time, a field, nonlinear)
+        newly = []
         for name, evidence in named:
-            if len(current.term(name)) > MAX_CONSTANCY_COEFFICIENTS:
+            if len(current["fit"].term(name)) > MAX_CONSTANCY_COEFFICIENTS:
                 continue
-            steady = constancy(data, current, name, frames, model=model,
+            steady = constancy(data, current["fit"], name, frames, model=model,
                                segments=settings["segments"], alpha=settings["alpha"])
             evidence["constancy"] = steady
             if steady["varies"] and steady["change"] > settings["constancy_max"]:
-                dropped.append({"name": name, "constancy": steady,
-                                "reason": "its coefficients change over time or across the "
-                                          "sheet: it soaks up part of an effect of another "
-                                          "form"})
-        if dropped:
-            gone = {d["name"] for d in dropped}
-            named = [(n, e) for n, e in named if n not in gone]
-            selected = [n for n in selected if n not in gone]
-            current = (regression.fit(data, train, [fx.get_effect(n) for n in selected],
-                                      model=model) if selected else base_fit)
-            q_current, _ = _q(data, current, frames, settings, mask)
-            gap_current = {"rollout": rollout_error(data, current, held, start=start),
-                           "one_step": one_step_error(data, current, held)}
+                newly.append({"name": name, "constancy": steady, "pass": attempt,
+                              "reason": "its coefficients change over time or across the "
+                                        "sheet: it soaks up part of an effect of another "
+                                        "form"})
+        if not newly:
+            break
+        dropped += newly
+        banned |= {d["name"] for d in newly}
+        if attempt == settings["reselect"]:
+            # no selection pass left: keep what passed, refitted without the dropped terms
+            named = [(n, e) for n, e in named if n not in banned]
+            current = _state(context, [n for n, _ in named], base_fit)
+    selected = [name for name, _ in named]
+    r_final = residuals(data, current["fit"], frames)
+    current, gap_current = current["fit"], current["gap"]
+    q_current, sigma_final = _scaled_q(data, r_final, frames, settings, mask)
     named_effects = [_describe(current, name, evidence, model) for name, evidence in named]
     final = current if selected else base_fit
     located_final = where(data, final, frames, window=settings["window"],
                           patch=settings["patch"], mask=mask[frames]) if selected else located
-    remaining = (q_current - 1.0) / max(q_before - 1.0, 1e-12)
+    # the share of the base model's structure left, both measured on one noise scale
+    common = min(state["sigma"], sigma_final)
+    remaining = ((_scaled_q(data, r_final, frames, settings, mask, common)[0] - 1.0)
+                 / max(_scaled_q(data, state["r"], frames, settings, mask, common)[0] - 1.0,
+                       1e-12)) if selected else 1.0
     unexplained = None
     if q_current > settings["q_threshold"] and (
             not selected or remaining > settings["unexplained_fraction"]):

@@ -55,3 +55,29 @@ def test_engine_refuses_positions_that_are_not_a_cloth():
                                "positions": rng.normal(size=trajectory.positions.shape)})
     with pytest.raises(InputError, match="expected a cloth trajectory"):
         regression.fit(regression.prepare(junk), np.arange(100))
+
+
+def _outside_trajectory(tmp_path, spec):
+    from replication.testdata import cloth_outside
+
+    made = cloth_outside.make(spec)
+    made.pop("truth")
+    path = tmp_path / "outside.npz"
+    cloth_outside.write_npz(path, made)
+    return read_trajectory(path)
+
+
+def test_engine_leaves_the_wrong_valley_on_noisy_constrained_data(tmp_path, monkeypatch):
+    # soft, strongly constrained and noisy: the start's stiffness comes out low and the
+    # rounds from it end in the valley (K about half, rest lengths -22 %, tau 0.38)
+    spec = {"n_frames": 185, "K": 2.5422, "tau": 0.1635, "noise_h": 3.79e-3,
+            "seed": 1938327239, "effects": []}
+    data = regression.prepare(_outside_trajectory(tmp_path, spec))
+    frames = np.arange(1, data.n_frames - 1)
+    fitted = regression.fit(data, frames)
+    assert abs(fitted.base.k[0] / spec["K"] - 1) < 0.12     # the valley: -53 %
+    assert abs(fitted.base.tau[0] / spec["tau"] - 1) < 0.05
+    assert abs(fitted.base.rest[0] / (1.5 / 16) - 1) < 0.02
+    monkeypatch.setattr(regression, "VALLEY_REST", 0.0)      # the guard off: the valley
+    trapped = regression.fit(data, frames)
+    assert trapped.base.rest[0] < 0.9 * fitted.base.rest[0]

@@ -134,3 +134,16 @@ def test_refuses_data_that_is_not_a_cloth(tmp_path, clean_trajectory):
     write_trajectory(path, noise)
     with pytest.raises(InputError, match=r"noise.npz: field .positions.: .*expected a cloth"):
         discrepancy(_config(path, tmp_path), tmp_path)
+
+
+def test_structure_measures_two_models_on_one_noise_scale():
+    from replication.discrepancy.residuals import structure
+
+    rng = np.random.default_rng(3)
+    n, frames = 17, np.arange(40)
+    free = np.ones(n * n, dtype=bool)
+    r = rng.normal(scale=1e-3, size=(frames.size, n * n, 3))
+    own = structure(r, frames, free, n)
+    halved = structure(r, frames, free, n, sigma=2.0 * own["sigma"])
+    assert halved["sigma"] == 2.0 * own["sigma"]
+    assert np.isclose(halved["Q"], own["Q"] / 4.0)

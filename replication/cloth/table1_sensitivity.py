@@ -25,7 +25,7 @@ from replication.provenance import (
     NOT_RESULT_KEYS, PROJECT_ROOT, code_hash, config_hash, path_sha256,
 )
 from replication.results import read_result
-from replication.sweep import PREFIX, read_gathered
+from replication.sweep import PREFIX, overrides_of, read_gathered
 
 # the reading runner, named so that this module's code hash covers it
 READING_RUNNER = f"{table1_readings.__name__}:{table1_readings.reading_run.__name__}"
@@ -61,11 +61,12 @@ def sweep_commands(config):
 
 
 def overrides(line):
-    """``{key: text}`` of a gathered line's overrides (from its run folder), without those
-    that cannot change a result (``progress``, ``strict``, ...: ``NOT_RESULT_KEYS``)."""
-    pairs = {key[len(PREFIX):]: value for key, value in line.items() if key.startswith(PREFIX)}
-    return {key: value_text(value) for key, value in pairs.items()
-            if value is not None and key.split(".")[0] not in NOT_RESULT_KEYS}
+    """``{key: text}`` of a gathered line's overrides, as written in its run folder's name
+    (not as the CSV typed them: ``0.0`` must stay a float), without those that cannot
+    change a result (``progress``, ``strict``, ...: ``NOT_RESULT_KEYS``)."""
+    pairs = overrides_of(str(line.get("run") or ""))
+    return {key[len(PREFIX):]: value for key, value in pairs.items()
+            if key[len(PREFIX):].split(".")[0] not in NOT_RESULT_KEYS}
 
 
 def reference_labels(line):

@@ -9,6 +9,8 @@ import numpy as np
 
 from replication.figures.cloth_common import save
 
+TABLE1_RTOL = 0.02   # Table 1's tolerance (replication.cloth.table1_readings)
+
 COLOURS = ("tab:blue", "tab:orange", "tab:green", "tab:purple")
 
 
@@ -16,7 +18,7 @@ def plot(axes, labels, *, goal, rtol, out_name, figure_dir="figures", n_cols=4):
     """One pair of panels per swept choice: above, the success rate of each reference run
     against the choice's values (dotted: the goal); below, every seed's largest
     |relative error| of its final best individual (log scale; dashed: the success
-    tolerance), slightly spread sideways per reference run.
+    tolerance; dotted: Table 1's 2%), slightly spread sideways per reference run.
 
     Parameters
     ----------
@@ -77,6 +79,7 @@ def _panel(top, bottom, axis, labels, *, goal, rtol):
         title += "\n" + ", ".join(axis["fixed"])
     top.set_title(title, fontsize=9)
     bottom.axhline(rtol, color="grey", ls="--", lw=1)
+    bottom.axhline(TABLE1_RTOL, color="grey", ls=":", lw=1)
     bottom.set_yscale("log")
     bottom.set_xticks(x, [v + ("" if p["found"] else "\n(not run)")
                           for v, p in zip(values, axis["points"])], fontsize=7)

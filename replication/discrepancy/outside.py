@@ -191,8 +191,9 @@ def rows_from_gathered(path=None):
 
     The CSV holds one line per run and one column per leaf of its ``result.json``
     (``datasets.N.exact``, ``datasets.N.kinds.0``, ...); this puts the datasets of all runs
-    back into one list of rows that :func:`summarise` reads. Returns ``(rows, runs)``, or
-    ``([], [])`` when the file does not exist.
+    back into one list of rows that :func:`summarise` reads. Returns ``(rows, runs)``
+    (``runs``: ``run``, ``seed``, ``code_sha256`` of each run, None when the CSV has no
+    provenance), or ``([], [])`` when the file does not exist.
     """
     import csv
     import math
@@ -216,7 +217,8 @@ def rows_from_gathered(path=None):
 
     rows, runs = [], []
     for line in lines:
-        runs.append({"run": line.get("run"), "seed": value(line.get("seed"))})
+        runs.append({"run": line.get("run"), "seed": value(line.get("seed")),
+                     "code_sha256": line.get("provenance.code_sha256") or None})
         index = 0
         while f"datasets.{index}.exact" in line and line[f"datasets.{index}.exact"] != "":
             head = f"datasets.{index}."

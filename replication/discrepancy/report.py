@@ -3,7 +3,10 @@ no fitting, only counting)."""
 
 from __future__ import annotations
 
-from replication.discrepancy.outside import SWEEP_CSV, rows_from_gathered, summarise
+from replication.discrepancy.outside import (
+    SWEEP_CSV, outside_study, rows_from_gathered, summarise,
+)
+from replication.provenance import code_hash
 from replication.report import Section, SummaryRow, fmt
 from replication.testdata import cloth_outside as og
 
@@ -103,10 +106,16 @@ def outside_section(result):
     pooled = summarise(pooled_rows, limit) if pooled_rows else None
     if pooled:
         seeds = ", ".join(str(r["seed"]) for r in runs)
+        code_now = code_hash(f"{outside_study.__module__}:{outside_study.__name__}")
+        stale = [r for r in runs if r["code_sha256"] != code_now]
         lines += [
             "", f"**Documented sweep** (seeds {seeds}: {pooled['n_datasets']} more datasets "
-            "drawn the same way, none of them seen while the workflow was tuned on the set "
-            f"above; gathered CSV committed as `{SWEEP_CSV}`, pooled here):", "",
+            "drawn the same way, none of them seen while the workflow was tuned (on the set "
+            "above and on separate tuning sets); gathered CSV committed as "
+            f"`{SWEEP_CSV}`, pooled here):", "",
+            *([f"**Stale:** {len(stale)} of {len(runs)} runs of the sweep were made by other "
+               "code than the current runner's (code hash, or no provenance in the CSV); "
+               "re-run the sweep for numbers of the current code.", ""] if stale else []),
             "| measure | goal | measured |", "|---|---|---|",
             f"| exact answers above the detection limit (n={pooled['n_above_limit']}) | "
             f">= 90% | {_pct(pooled['exact_rate_above_limit'])} |",
@@ -132,7 +141,8 @@ def outside_section(result):
         for kind, k in pooled["by_kind"].items():
             lines.append(f"| {kind} | {k['n_all']} | {_pct(k['exact_all'])} | "
                          f"{k['n_above']} | {_pct(k['exact_above'])} |")
-        lines += ["", "Regenerate: `replicate -m experiment=discrepancy_outside seed=1,2,3 "
+        lines += ["", f"Regenerate: `replicate -m experiment=discrepancy_outside "
+                  f"seed={','.join(str(r['seed']) for r in runs)} "
                   "figure=null manifest=null`, then `replicate-gather "
                   f"multirun/discrepancy_outside --output {SWEEP_CSV}`."]
     else:

@@ -78,7 +78,12 @@ def settings_from(config):
 
 
 def _bic_delta(r0, r1, extra_params):
-    """Change of BIC (Gaussian one-step residuals) from adding ``extra_params``."""
+    """Change of BIC (Gaussian one-step residuals) from adding ``extra_params``.
+
+    ``r0`` and ``r1`` are the residuals on the particle-frames the fits use (outside the
+    deformation constraint): where the constraint acts the model does not hold, and a
+    trial that happens to move residuals there must not count as explaining the data.
+    """
     n = r0.size
     s0, s1 = max(np.sum(r0 ** 2), 1e-300), max(np.sum(r1 ** 2), 1e-300)
     return float(n * np.log(s1 / s0) + extra_params * np.log(n))
@@ -102,13 +107,18 @@ def _scaled_q(data, r, frames, settings, mask, sigma=None):
     return out["Q"], out["sigma"]
 
 
-def _power(data, r, frames, mask):
-    """Mean square of residuals ``r`` over free particles of the particle-frames in
-    ``mask`` (all of them for a fit through the constraint, which has no mask)."""
+def _used(data, frames, mask):
+    """Free particles of the particle-frames in ``mask`` on ``frames`` (every free
+    particle-frame for a fit through the constraint, whose mask is empty)."""
     use = mask[frames] & data.free[None, :]
     if not np.any(use):
         use = np.broadcast_to(data.free[None, :], use.shape)
-    return float(np.mean(r[use] ** 2))
+    return use
+
+
+def _power(data, r, frames, mask):
+    """Mean square of residuals ``r`` over :func:`_used` particle-frames."""
+    return float(np.mean(r[_used(data, frames, mask)] ** 2))
 
 
 def _state(context, names, base_fit):
@@ -174,7 +184,10 @@ def _forward(context, state, banned, tried, rounds, attempt):
             q_rank = _scaled_q(data, trial["r"], frames, settings, mask, state["sigma"])[0]
             explained = (q_before - q_after) / max(q_before - 1.0, 1e-12)
             p_before, p_after = (_power(data, r, frames, mask) for r in (state["r"], trial["r"]))
-            explained_power = (p_before - p_after) / max(p_before - 6.0 * sigma ** 2, 1e-300)
+            # None when the residual power is already at the noise floor (nothing to explain)
+            excess = p_before - 6.0 * sigma ** 2
+            explained_power = (p_before - p_after) / excess if excess > 0 else None
+            use = _used(data, frames, mask)
             evidence = {
                 "wald": scores[name]["wald"], "threshold": scores[name]["threshold"],
                 "log10_p": scores[name]["log10_p"], "stability": scores[name]["stability"],
@@ -184,8 +197,7 @@ def _forward(context, state, banned, tried, rounds, attempt):
                 "heldout_rollout_after": trial["gap"]["rollout"],
                 "heldout_one_step_before": state["gap"]["one_step"],
                 "heldout_one_step_after": trial["gap"]["one_step"],
-                "delta_bic": _bic_delta(state["r"][:, data.free], trial["r"][:, data.free],
-                                        scores[name]["df"]),
+                "delta_bic": _bic_delta(state["r"][use], trial["r"][use], scores[name]["df"]),
                 "fit": trial["fit"].how, "pass": attempt,
             }
             testable = (trial["fit"].how == "regression"
@@ -193,7 +205,8 @@ def _forward(context, state, banned, tried, rounds, attempt):
             above = q_before > threshold
             how = ("strong" if above and explained >= settings["explained_min"] else
                    "weak" if q_after <= threshold and evidence["delta_bic"] < 0 else
-                   "power" if above and testable and explained_power >= settings["power_min"]
+                   "power" if (above and testable and explained_power is not None
+                              and explained_power >= settings["power_min"])
                    else None)
             evidence["confirmed_as"] = how
             confirmed = bool(how is not None and trial["gap"]["rollout"]
@@ -410,7 +423,7 @@ def analyse(trajectory, config=None, *, rng=None):
             named = [(n, e) for n, e in named if n not in banned]
             current = _state(context, [n for n, _ in named], base_fit)
     selected = [name for name, _ in named]
-    r_final = residuals(data, current["fit"], frames)
+    r_final = current["r"]
     current, gap_current = current["fit"], current["gap"]
     q_current, sigma_final = _scaled_q(data, r_final, frames, settings, mask)
     named_effects = [_describe(current, name, evidence, model) for name, evidence in named]

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -57,6 +58,12 @@ def command_line(result):
     """The command that made a result (experiment name; overrides are in its config;
     ``force=true`` lets it write into ``results/``)."""
     return f"replicate experiment={result['experiment']} force=true"
+
+
+def anchor(title):
+    """The link target of a REPORT.md heading (GitHub's rule: lower case, punctuation
+    dropped, spaces to hyphens)."""
+    return "#" + re.sub(r"[^a-z0-9 _-]", "", title.lower()).replace(" ", "-")
 
 
 def fmt(value, digits=4):

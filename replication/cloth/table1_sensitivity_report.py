@@ -11,15 +11,7 @@ from __future__ import annotations
 
 from replication.cloth.identify_report import PAPER_TABLE1
 from replication.cloth.table1_readings import TABLE1_RTOL
-from replication.report import Section, SummaryRow, fmt
-
-
-def anchor(title):
-    """The link target of a REPORT.md heading (GitHub's rule: lower case, punctuation
-    dropped, spaces to hyphens)."""
-    import re
-
-    return "#" + re.sub(r"[^a-z0-9 _-]", "", title.lower()).replace(" ", "-")
+from replication.report import Section, SummaryRow, anchor, fmt
 
 
 def _pct(value):

@@ -301,9 +301,11 @@ def _methods(config, settings):
     motion_min, erode = flow.get("motion_min", 0.25), int(flow.get("erode", 5))
     return {
         "TV-L1 flow + rigid fit": lambda frames, seed: baselines.optical_flow_rotation(
-            frames, method="tvl1", motion_min=motion_min, erode=erode),
+            frames, method="tvl1", motion_min=motion_min, erode=erode,
+            flow_options=flow.get("tvl1")),
         "iLK flow + rigid fit": lambda frames, seed: baselines.optical_flow_rotation(
-            frames, method="ilk", motion_min=motion_min, erode=erode),
+            frames, method="ilk", motion_min=motion_min, erode=erode,
+            flow_options=flow.get("ilk")),
         "direct least squares": lambda frames, seed: baselines.direct_least_squares(
             frames, sigma=settings["sigma"], relative_threshold=settings["relative_threshold"]),
         "DE on IRC residual": lambda frames, seed: baselines.de_rotation(

@@ -8,16 +8,10 @@ that the row names the reason measured here.
 
 from __future__ import annotations
 
-import re
 
 from replication.motion.omega_bias import CONTROLLED, NOISY, READINGS, VARIANTS, find
 from replication.motion.report import PAPER_OMEGA
-from replication.report import Section, SummaryRow, fmt
-
-def anchor(title):
-    """The link target of a REPORT.md heading (GitHub's rule: lower case, punctuation
-    dropped, spaces to hyphens)."""
-    return "#" + re.sub(r"[^a-z0-9 _-]", "", title.lower()).replace(" ", "-")
+from replication.report import Section, SummaryRow, anchor, fmt
 
 
 def _pct(value):

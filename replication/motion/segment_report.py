@@ -103,14 +103,8 @@ def study_section(result):
     lines = _table(result["summary"])
     rows = []
     for s in result["summary"]:
-        if s["method"] == "faithful":
-            rows.append(SummaryRow(
-                "2.3 exactly as described (EA, inflating snake, one accumulation) segments "
-                "the rotating objects", "qualitative (Figs. 5-7)",
-                f"{s['found_fraction']:.0%} of object-runs found ({s['runs']} runs); median "
-                f"IoU {s['iou_median']:.2f}",
-                "as the pipeline's goal", "partly" if s["found_fraction"] > 0
-                else "not replicated"))
+        # the row of 2.3 exactly as described (the faithful method) is written by
+        # segment_sensitivity's section (replication/motion/sensitivity_report.py)
         if s["method"] == "pipeline":
             met = s["objects_at_90pct"] == s["objects"]
             steps = ("EA, snakes, restricted accumulation and per-pixel assignment"

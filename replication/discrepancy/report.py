@@ -313,3 +313,27 @@ def calibration_section(result):
     rows = [SummaryRow("false names, calibration set (in-house generator)", "not in paper",
                        _goal(_pct(s["false_name_rate"]), ok), "<= 5%", BEYOND)]
     return Section("\n".join(lines), rows)
+
+
+def scale_section(result):
+    """Workflow time against the number of frames (``bench_discrepancy_scale``)."""
+    spec, m = result["spec"], result["metrics"]
+    kinds = ", ".join(e["kind"] for e in spec["effects"]) or "none"
+    lines = [
+        f"One outside-generator dataset per length: K {fmt(spec['K'], 3)}, tau "
+        f"{fmt(spec['tau'], 3)}, noise {fmt(spec['noise_h'], 2)} h, hidden {kinds}; the same "
+        "draws at every length. Time: reading the file and the whole analysis.",
+        "",
+        "| frames | seconds | named | hidden (library names) | unexplained | gap before -> "
+        "after (h) |",
+        "|---|---|---|---|---|---|",
+    ]
+    lines += [f"| {r['frames']} | {fmt(r['seconds'], 3)} | {', '.join(r['named']) or 'none'} | "
+              f"{', '.join(r['expected']) or 'none'} | {r['unexplained']} | "
+              f"{fmt(r['gap_before'], 3)} -> {fmt(r['gap_after'], 3)} |"
+              for r in result["rows"]]
+    lines += ["", f"Growth exponent (log-log slope of the time against the frames): "
+              f"{fmt(m['seconds_exponent_vs_frames'], 3)} (1: linear)."]
+    if result.get("figure"):
+        lines += ["", f"![discrepancy cost growth]({result['figure']})"]
+    return Section("\n".join(lines))

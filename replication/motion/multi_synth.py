@@ -16,6 +16,7 @@ from replication.errors import check
 from replication.motion.synth import degrade, make_texture, render_objects
 
 SHAPE_KEYS = ("center", "r_inner", "r_outer", "gap_deg", "gap_dir_deg")
+MAX_OBJECTS = 8   # objects per sequence (labels 1..8)
 
 
 def check_object(where, item):
@@ -61,8 +62,8 @@ def make_multi_sequence(spec, *, rng):
     """
     rng = np.random.default_rng(rng)
     shape = tuple(int(v) for v in spec.get("shape", (256, 256)))
-    check(1 <= len(spec.get("objects", [])) <= 4,
-          f"objects: {len(spec.get('objects', []))} object(s); expected 1 to 4")
+    check(1 <= len(spec.get("objects", [])) <= MAX_OBJECTS,
+          f"objects: {len(spec.get('objects', []))} object(s); expected 1 to {MAX_OBJECTS}")
     for k, item in enumerate(spec["objects"]):
         check_object(f"objects[{k}]", item)
     background = make_texture(spec.get("background_texture", {}), shape, rng=rng)

@@ -15,7 +15,7 @@ import numpy as np
 from replication.errors import check
 from replication.motion.io import (read_manifest_sequences, read_sequence,
                                    write_sequence_folder, write_sequence_npz)
-from replication.motion.multi_synth import check_object, make_multi_sequence
+from replication.motion.multi_synth import MAX_OBJECTS, check_object, make_multi_sequence
 from replication.progress import bar, progress
 from replication.provenance import file_sha256
 from replication.results import write_json_atomic
@@ -51,8 +51,8 @@ def make_data(config, out):
     specs = {name: _merged(config.get("base", {}), override) for name, override in items}
     for name, spec in specs.items():
         objects = spec.get("objects", [])
-        check(1 <= len(objects) <= 4, f"sequences.{name}.objects: {len(objects)} object(s); "
-              "expected 1 to 4")
+        check(1 <= len(objects) <= MAX_OBJECTS, f"sequences.{name}.objects: {len(objects)} "
+              f"object(s); expected 1 to {MAX_OBJECTS}")
         for k, item in enumerate(objects):
             check_object(f"sequences.{name}.objects[{k}]", item)
         check(spec.get("format", "npz") in ("npz", "png8", "png16"),

@@ -306,3 +306,20 @@ def bench_section(result):
                      f"<= {goal:g} s", "beyond the paper" if m["pipeline_s_median"] <= goal
                      else "not replicated")
     return Section(f"Data `{result['data']}`.\n\n" + text, [row])
+
+
+def objects_section(result):
+    """Segmentation time against the number of objects (``bench_segment_objects``)."""
+    side = result["frame_side"]
+    lines = [f"`bench_segment`'s pipeline on {side} x {side} sequences with k textured discs "
+             "(a 3 x 3 grid, the first k cells), median of "
+             f"{result['config']['repeats']} runs after a warm-up; found: `segment_study`'s "
+             "criterion (IoU >= 0.7, centre within 2 px).", "",
+             "| objects | median s | found |", "|---|---|---|"]
+    lines += [f"| {r['objects']} | {fmt(r['seconds_median'], 3)} | {r['found_fraction']:.0%} |"
+              for r in result["rows"]]
+    lines += ["", "Growth exponent (log-log slope of the time against the objects): "
+              f"{fmt(result['metrics']['seconds_exponent_vs_objects'], 3)} (1: linear)."]
+    if result.get("figure"):
+        lines += ["", f"![segmentation cost growth]({result['figure']})"]
+    return Section("\n".join(lines))

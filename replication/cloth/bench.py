@@ -60,7 +60,7 @@ def numpy_step(x, v, rest, k, tau, scene):
     return x2, v2
 
 
-def _best_time(function, repeats):
+def best_time(function, repeats):
     times = []
     for _ in range(repeats):
         start = time.perf_counter()
@@ -103,7 +103,7 @@ def bench_cloth(config, out):
 
     compiled()  # compile / warm up
     progress(f"compiled step: {pop} individuals x {n_steps} steps, best of {repeats}")
-    seconds = _best_time(compiled, repeats)
+    seconds = best_time(compiled, repeats)
     updates = pop * n_steps * scene.n_springs
     baseline_steps = int(config["baseline_steps"])
 
@@ -114,7 +114,7 @@ def bench_cloth(config, out):
                 x, v = numpy_step(x, v, params.rest[i], params.k[i], params.tau[i], scene)
 
     progress(f"numpy baseline: {pop} individuals x {baseline_steps} steps")
-    baseline_seconds = _best_time(baseline, 1)
+    baseline_seconds = best_time(baseline, 1)
     # the baseline is checked against the compiled step, or its speed means nothing
     x_np, _ = numpy_step(x0[0], v0[0], params.rest[0], params.k[0], params.tau[0], scene)
     x_nb, _ = step(x0[:1], v0[:1], params_from_vectors(
@@ -125,7 +125,7 @@ def bench_cloth(config, out):
     for kind in ("small", "full"):
         cost = make_cost(trajectory, kind)
         cost(params)
-        cost_times[kind] = _best_time(lambda cost=cost: cost(params), repeats)
+        cost_times[kind] = best_time(lambda cost=cost: cost(params), repeats)
     init_x, _ = initial_state(scene)
     metrics = {
         "spring_updates_per_second_compiled_pop100": updates / seconds,

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from replication.cloth.bench import best_time
 from replication.cloth.identify import identify
 from replication.cloth.io import trajectory_from_rollout
 from replication.cloth.mesh import FAMILY_OF_TYPE
@@ -28,15 +29,6 @@ from replication.errors import check
 from replication.figures import growth as figure
 from replication.growth import exponent
 from replication.progress import progress
-
-
-def _best(function, repeats):
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        function()
-        times.append(time.perf_counter() - start)
-    return min(times)
 
 
 def step_rate(n, pop, *, tau, n_steps, repeats, rng, spread=0.2):
@@ -54,7 +46,7 @@ def step_rate(n, pop, *, tau, n_steps, repeats, rng, spread=0.2):
             x, v = step(x, v, params, scene)
 
     step(x0, v0, params, scene)   # compile / warm up
-    seconds = _best(run, repeats)
+    seconds = best_time(run, repeats)
     return {"n": n, "pop": pop, "springs": scene.n_springs, "seconds": seconds,
             "spring_updates_per_second": pop * n_steps * scene.n_springs / seconds}
 

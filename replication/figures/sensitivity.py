@@ -59,6 +59,8 @@ def draw(path, study, *, ylabel, title, n_cols=4):
 def _text(value):
     if isinstance(value, list):
         return ",".join(_text(v) for v in value)
+    if isinstance(value, bool):
+        return "true" if value else "false"
     if isinstance(value, float):
         return f"{value:g}"
     return "null" if value is None else str(value)

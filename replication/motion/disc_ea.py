@@ -406,7 +406,9 @@ class DiscEA:
         self.data = data
         self.rng = np.random.default_rng(rng)
         self.n = int(self.settings["pop_size"])
-        self.n_keep = max(1, int(round(self.settings["keep"] * self.n)))
+        # the kept and their three mutated copies fit in the population (keep = 0.25 with
+        # an odd population rounds up past it otherwise)
+        self.n_keep = max(1, min(int(round(self.settings["keep"] * self.n)), self.n // 4))
         height, width = data.shape
         m = self.settings["margin"]
         s = self.settings

@@ -29,8 +29,10 @@ FAITHFUL = "faithful"
 
 def flow_score(result):
     """Per flow method, the share of (sequence, noise) cases within the accuracy goal
-    (the goal ``motion_accuracy``'s summary states per noise level); ``rate``: the best
-    method's, ``points``: its cases (1 within the goal, 0 not)."""
+    (the goal ``motion_accuracy``'s summary states per noise level), the medians over the
+    cases with an estimate and ``n_failed``, the cases without one (no pixel left in the
+    moving region: a miss); ``rate``: the best method's, ``points``: its cases (1 within
+    the goal, 0 not)."""
     goals = {(s["method"], s["noise_255"]): (s["goal_px"], s["goal_pct"])
              for s in result["summary"]}
     per_method = {}
@@ -42,10 +44,13 @@ def flow_score(result):
                       and r["centre_px"] <= goals[(method, r["noise_255"])][0]
                       and abs(r["omega_pct"]) <= goals[(method, r["noise_255"])][1])
                 for r in rows]
+        centre = np.array([r["centre_px"] for r in rows], dtype=float)
+        omega = np.abs(np.array([r["omega_pct"] for r in rows], dtype=float))
+        failed = ~(np.isfinite(centre) & np.isfinite(omega))   # no moving region left
         per_method[method] = {
-            "rate": float(np.mean(hits)), "points": hits,
-            "centre_px_median": float(np.median([r["centre_px"] for r in rows])),
-            "omega_pct_median": float(np.median([abs(r["omega_pct"]) for r in rows]))}
+            "rate": float(np.mean(hits)), "points": hits, "n_failed": int(failed.sum()),
+            "centre_px_median": float(np.median(centre[~failed])) if (~failed).any() else None,
+            "omega_pct_median": float(np.median(omega[~failed])) if (~failed).any() else None}
     best = max(per_method, key=lambda m: per_method[m]["rate"])
     return {"rate": per_method[best]["rate"], "points": per_method[best]["points"],
             "best_method": best, "methods": per_method}

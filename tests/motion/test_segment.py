@@ -103,6 +103,16 @@ def test_ea_is_deterministic_for_a_seed(two_objects):
     assert not np.array_equal(a["population"], c["population"])
 
 
+def test_ea_keeps_a_quarter_at_most_whatever_the_rounding(two_objects):
+    # keep = 0.25 of 150 rounds to 38 kept, and 4 x 38 > 150: the kept and their three
+    # mutated copies must still fit (this ended in a numpy error before)
+    data = disc_ea.disc_data(two_objects[0])
+    ea = disc_ea.DiscEA(data, {**SMALL["ea"], "pop_size": 150, "keep": 0.25,
+                               "generations": 2}, rng=0)
+    assert ea.n_keep == 37
+    assert ea.run()["population"].shape == (150, 6)
+
+
 @pytest.mark.parametrize("method, message", [
     ({"ea": {"pop_size": 3}}, "pop_size=3: expected at least 10"),
     ({"ea": {"r_min": 10, "r_max": 5}}, "expected 0 < r_min < r_max"),

@@ -171,8 +171,8 @@ def test_bad_input_on_the_command_line_gives_one_line(tmp_path, overrides, messa
 
 def test_generator_refuses_too_many_objects_with_the_count_named():
     spec = json.loads(json.dumps(TWO_OBJECTS))
-    spec["objects"] = spec["objects"] * 3
-    with pytest.raises(InputError, match="objects: 6 object"):
+    spec["objects"] = spec["objects"] * 5
+    with pytest.raises(InputError, match="objects: 10 object"):
         make_multi_sequence(spec, rng=0)
 
 

@@ -220,14 +220,20 @@ def replicate_command(results):
     return command_for
 
 
-def sharing_environment(jobs, environ=None):
+def sharing_environment(jobs, environ=None, cpus=None):
     """Environment of experiments that share the CPUs with others (``jobs > 1``).
 
     numba's OpenMP threads spin while they wait for work (libgomp's default); next to
     another experiment the spinning takes CPU from it (measured here: an experiment beside
     fig09_10 used 43-58 s of CPU spinning, 27 s passive). ``OMP_WAIT_POLICY=PASSIVE`` makes
-    them sleep; it changes no result. Benchmarks run alone with the default policy. A
-    policy set by the user is kept.
+    them sleep. Even asleep, a parallel region waits for its slowest thread, and beside
+    another experiment some thread is always descheduled: ``discrepancy_blind`` took 98 s
+    (165 s of CPU) alone with 2 threads and 475 s (449 s of CPU) beside the baselines
+    study. So each shared experiment gets ``cpus // jobs`` numba threads
+    (``NUMBA_NUM_THREADS``). Neither changes a result: every parallel loop of the package
+    runs independent jobs (an individual, a frame, an omega), each summed in order, and
+    the votes are integers. Benchmarks run alone with the defaults. Values set by the user
+    are kept.
 
     Parameters
     ----------
@@ -235,10 +241,14 @@ def sharing_environment(jobs, environ=None):
         Experiments run at once.
     environ : dict, optional
         The environment to start from (default ``os.environ``).
+    cpus : int, optional
+        CPUs to share (default ``os.cpu_count()``).
     """
     environ = dict(os.environ if environ is None else environ)
     if jobs > 1:
         environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+        cpus = (os.cpu_count() or 1) if cpus is None else cpus
+        environ.setdefault("NUMBA_NUM_THREADS", str(max(1, cpus // jobs)))
     return environ
 
 

@@ -159,3 +159,9 @@ def test_shared_runs_wait_passively_unless_the_user_chose():
     assert sharing_environment(2, {})["OMP_WAIT_POLICY"] == "PASSIVE"
     assert "OMP_WAIT_POLICY" not in sharing_environment(1, {})
     assert sharing_environment(2, {"OMP_WAIT_POLICY": "ACTIVE"})["OMP_WAIT_POLICY"] == "ACTIVE"
+    # each of the experiments run at once gets its share of the CPUs as numba threads
+    assert sharing_environment(2, {}, cpus=2)["NUMBA_NUM_THREADS"] == "1"
+    assert sharing_environment(2, {}, cpus=8)["NUMBA_NUM_THREADS"] == "4"
+    assert sharing_environment(4, {}, cpus=2)["NUMBA_NUM_THREADS"] == "1"
+    assert "NUMBA_NUM_THREADS" not in sharing_environment(1, {}, cpus=2)
+    assert sharing_environment(2, {"NUMBA_NUM_THREADS": "2"}, cpus=2)["NUMBA_NUM_THREADS"] == "2"

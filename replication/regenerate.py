@@ -36,6 +36,7 @@ from replication.progress import ENVIRONMENT, MODES, bar, mode_for
 from replication.provenance import PROJECT_ROOT, run_provenance
 from replication.report import CONFIG_DIR, build_report, experiment_entries
 from replication.results import read_result_or_none
+from replication.workers import shared_threads
 
 CACHE_FILE = ".regenerate-cache.json"
 
@@ -227,13 +228,14 @@ def sharing_environment(jobs, environ=None, cpus=None):
     another experiment the spinning takes CPU from it (measured here: an experiment beside
     fig09_10 used 43-58 s of CPU spinning, 27 s passive). ``OMP_WAIT_POLICY=PASSIVE`` makes
     them sleep. Even asleep, a parallel region waits for its slowest thread, and beside
-    another experiment some thread is always descheduled: ``discrepancy_blind`` took 98 s
-    (165 s of CPU) alone with 2 threads and 475 s (449 s of CPU) beside the baselines
-    study. So each shared experiment gets ``cpus // jobs`` numba threads
-    (``NUMBA_NUM_THREADS``). Neither changes a result: every parallel loop of the package
-    runs independent jobs (an individual, a frame, an omega), each summed in order, and
-    the votes are integers. Benchmarks run alone with the defaults. Values set by the user
-    are kept.
+    another experiment some thread is always descheduled. OpenBLAS's threads busy-wait too,
+    and ignore the OpenMP policy: one ``discrepancy_blind`` dataset took 6.6 s of CPU alone
+    with the default threads, 29.6 s beside two busy processes, and 5.1 s there with one
+    numba thread and one OpenBLAS thread. So each shared experiment gets ``cpus // jobs``
+    numba, OpenMP and BLAS threads (:func:`replication.workers.shared_threads`). None
+    changes a result: every parallel loop of the package runs independent jobs (an
+    individual, a frame, an omega), each summed in order, and the votes are integers.
+    Benchmarks run alone with the defaults. Values set by the user are kept.
 
     Parameters
     ----------
@@ -244,12 +246,7 @@ def sharing_environment(jobs, environ=None, cpus=None):
     cpus : int, optional
         CPUs to share (default ``os.cpu_count()``).
     """
-    environ = dict(os.environ if environ is None else environ)
-    if jobs > 1:
-        environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
-        cpus = (os.cpu_count() or 1) if cpus is None else cpus
-        environ.setdefault("NUMBA_NUM_THREADS", str(max(1, cpus // jobs)))
-    return environ
+    return shared_threads(os.environ if environ is None else environ, jobs, cpus)
 
 
 def critical_paths(names, blocks, expected):

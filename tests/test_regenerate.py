@@ -165,3 +165,20 @@ def test_shared_runs_wait_passively_unless_the_user_chose():
     assert sharing_environment(4, {}, cpus=2)["NUMBA_NUM_THREADS"] == "1"
     assert "NUMBA_NUM_THREADS" not in sharing_environment(1, {}, cpus=2)
     assert sharing_environment(2, {"NUMBA_NUM_THREADS": "2"}, cpus=2)["NUMBA_NUM_THREADS"] == "2"
+    # and as BLAS threads, which busy-wait beside another process whatever OpenMP's policy
+    shared = sharing_environment(2, {}, cpus=4)
+    assert shared["OPENBLAS_NUM_THREADS"] == shared["OMP_NUM_THREADS"] == "2"
+
+
+def test_worker_pools_share_the_cpus_and_restore_the_environment(monkeypatch):
+    import os
+
+    from replication.workers import process_pool
+
+    monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
+    monkeypatch.setenv("NUMBA_NUM_THREADS", "1")
+    with process_pool(2) as pool:
+        seen = list(pool.map(os.getenv, ["OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS"]))
+    assert seen[0] == str(max(1, (os.cpu_count() or 1) // 2))
+    assert seen[1] == "1"   # the user's value is kept
+    assert "OPENBLAS_NUM_THREADS" not in os.environ

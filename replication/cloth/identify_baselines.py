@@ -9,9 +9,7 @@ best cost and the parameter errors at each budget.
 
 from __future__ import annotations
 
-import multiprocessing
 import time
-from concurrent.futures import ProcessPoolExecutor
 
 import numba
 import numpy as np
@@ -25,6 +23,7 @@ from replication.figures import cloth_baselines_ecdf
 from replication.optim.pymoo_adapters import ALGORITHMS, run_pymoo
 from replication.optim.scipy_adapters import run_least_squares
 from replication.progress import bar, progress
+from replication.workers import process_pool
 
 KINDS = ("paper_ea", "structured", "pymoo", "least_squares")
 
@@ -182,8 +181,7 @@ def _map(tasks, workers):
             return [_one_run(task) for task in bar(tasks, label)]
         finally:
             numba.set_num_threads(threads)
-    context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+    with process_pool(workers) as pool:
         return list(bar(pool.map(_one_run, tasks, chunksize=1), label, total=len(tasks)))
 
 

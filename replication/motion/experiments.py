@@ -428,8 +428,7 @@ def _case(args):
 
 def _run_cases(cases, workers):
     """Results of :func:`_case` for every case, in order, on ``workers`` processes."""
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
+    from replication.workers import process_pool
 
     if workers == 1:
         import numba
@@ -441,8 +440,7 @@ def _run_cases(cases, workers):
         finally:
             numba.set_num_threads(threads)
         return
-    context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(workers, mp_context=context, initializer=_start_worker) as pool:
+    with process_pool(workers, initializer=_start_worker) as pool:
         yield from pool.map(_case, cases)
 
 

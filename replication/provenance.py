@@ -3,12 +3,16 @@
 The code hash of an experiment covers only the modules of this package that its runner
 imports, directly or through other modules of the package (found statically, from the
 source), the modules that write every result (:data:`CORE_MODULES`) and the pinned
-requirements: a change to the cloth code does not invalidate a motion result.
+requirements: a change to the cloth code does not invalidate a motion result. Within the
+runner's own module, only the definitions its function reaches count, so a change to
+another runner's figure leaves it current. Files count by what their code does, not by
+where it lives: a pure move changes no hash (:func:`code_text`).
 """
 
 from __future__ import annotations
 
 import ast
+import copy
 import hashlib
 import json
 from pathlib import Path
@@ -70,6 +74,35 @@ def _imported_modules(path, name):
     return {module for module in found if module_file(module) is not None}
 
 
+MOVES_RECORD = PROJECT_ROOT / "results" / "provenance-moves.json"
+
+
+def _moves():
+    """``{runner: {"legacy_runner", "legacy_code_sha256", "code_sha256"}}`` of
+    :data:`MOVES_RECORD` (:mod:`replication.moves`), ``{}`` without one."""
+    try:
+        return json.loads(MOVES_RECORD.read_text())["runners"]
+    except FileNotFoundError:
+        return {}
+
+
+def same_code(recorded, runner):
+    """Whether a result whose ``code_sha256`` is ``recorded`` was made by the current code
+    of ``runner``: the same hash, or the earlier scheme's hash of code that has only moved
+    since (:mod:`replication.moves`) and not changed after."""
+    now = code_hash(runner)
+    if recorded == now:
+        return True
+    moved = _moves().get(runner)
+    return bool(moved) and moved["legacy_code_sha256"] == recorded \
+        and moved["code_sha256"] == now
+
+
+def legacy_runner(runner):
+    """The name ``runner`` had before a recorded move (``None`` if none)."""
+    return _moves().get(runner, {}).get("legacy_runner")
+
+
 def module_closure(roots):
     """Sorted source files of modules ``roots`` and of every module of this package they
     import, transitively, with the ``__init__.py`` of each package on the way."""
@@ -85,23 +118,128 @@ def module_closure(roots):
     return sorted({module_file(name) for name in seen})
 
 
+class _CodeOnly(ast.NodeTransformer):
+    """Drops import statements and docstrings from a syntax tree."""
+
+    def generic_visit(self, node):
+        body = getattr(node, "body", None)
+        if isinstance(body, list) and body and isinstance(body[0], ast.Expr) \
+                and isinstance(body[0].value, ast.Constant) \
+                and isinstance(body[0].value.value, str):
+            node.body = body[1:]
+        return super().generic_visit(node)
+
+    def visit_Import(self, node):
+        return None
+
+    visit_ImportFrom = visit_Import
+
+
+def code_text(node):
+    """What a syntax tree does, as text: its structure without import statements,
+    docstrings, comments, layout or line numbers. Which code a result uses is the
+    closure's business (:func:`module_closure`), what that code does is this text's, so a
+    move that only rewrites imports and the paths named in docstrings leaves it alone."""
+    return ast.dump(_CodeOnly().visit(copy.deepcopy(node)), include_attributes=False)
+
+
+def source_digest(path):
+    """sha256 of :func:`code_text` of a source file."""
+    tree = ast.parse(Path(path).read_text(), filename=str(path))
+    return hashlib.sha256(code_text(tree).encode()).hexdigest()
+
+
+def _bindings(tree):
+    """Top-level definitions of a module (``{name: node}``) and the package modules its
+    top-level imports bind to names (``{name: module}``)."""
+    defs, imported = {}, {}
+    for node in tree.body:
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            defs[node.name] = node
+        elif isinstance(node, (ast.Assign, ast.AnnAssign)):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            defs.update((leaf.id, node) for target in targets for leaf in ast.walk(target)
+                        if isinstance(leaf, ast.Name))
+        elif isinstance(node, ast.Import):
+            imported.update((alias.asname or alias.name.partition(".")[0], alias.name)
+                            for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and not node.level:
+            imported.update((alias.asname or alias.name, _target(node.module, alias.name))
+                            for alias in node.names)
+    return defs, imported
+
+
+def _target(module, name):
+    """``module.name`` when that is a module of the package, else ``module``."""
+    full = f"{module}.{name}"
+    return full if module_file(full) is not None else module
+
+
+def runner_parts(runner):
+    """What the function of a runner ``"module:function"`` reaches in its own module.
+
+    Returns the :func:`code_text` of the top-level definitions it uses, transitively, and
+    the package modules those use. Another runner's figure in the same module is
+    then no part of this runner's code, and a change to it leaves this runner's results
+    current.
+    """
+    module, _, function = runner.partition(":")
+    path = module_file(module)
+    source = path.read_text()
+    tree = ast.parse(source, filename=str(path))
+    defs, imported = _bindings(tree)
+    if function not in defs:
+        raise ValueError(f"runner {runner!r}: {path} has no top-level {function!r}")
+    seen, todo, modules = set(), [function], set()
+    while todo:
+        name = todo.pop()
+        if name in seen:
+            continue
+        seen.add(name)
+        for node in ast.walk(defs[name]):
+            if isinstance(node, ast.Name):
+                if node.id in defs:
+                    todo.append(node.id)
+                elif node.id in imported:
+                    modules.add(imported[node.id])
+            elif isinstance(node, ast.ImportFrom) and not node.level:
+                modules.update(_target(node.module, alias.name) for alias in node.names)
+            elif isinstance(node, ast.Import):
+                modules.update(alias.name for alias in node.names)
+    nodes = {id(defs[name]): defs[name] for name in seen}.values()
+    segments = sorted(code_text(node) for node in nodes)
+    return segments, sorted(m for m in modules if module_file(m) is not None)
+
+
 def code_hash(runner=None):
     """sha256 over the Python sources behind a result and the pinned requirements.
 
-    ``runner`` : ``"module:function"`` (or a module name): hash the modules it imports
-    (:func:`module_closure`) and :data:`CORE_MODULES`; ``None``: the whole package.
+    ``runner``: ``"module:function"``: the definitions that function reaches in its module
+    and every package module those import (:func:`runner_parts`, :func:`module_closure`);
+    a module name: that module's closure; ``None``: the whole package. Both with
+    :data:`CORE_MODULES`. Each distinct :func:`code_text` of a file counts once, in no
+    order of paths (docs/results.md, "Provenance"): a pure move of code between modules
+    changes no hash.
     """
+    segments = []
     if runner is None:
         files = sorted(PACKAGE_DIR.rglob("*.py"))
     else:
-        files = module_closure([runner.partition(":")[0], *CORE_MODULES])
+        module, _, function = runner.partition(":")
+        roots = [module]
+        if function:
+            segments, roots = runner_parts(runner)
+            parts = module.split(".")
+            roots = roots + [".".join(parts[:i]) for i in range(1, len(parts))]
+        files = module_closure([*roots, *CORE_MODULES])
+    # a set: the empty __init__.py of a package a move adds is the same text as the others
+    digests = sorted({source_digest(path) for path in files})
     lock = PROJECT_ROOT / "requirements.lock"
     if lock.exists():
-        files.append(lock)
+        digests.append(file_sha256(lock))
     digest = hashlib.sha256()
-    for path in files:
-        digest.update(str(path.relative_to(PROJECT_ROOT)).encode())
-        digest.update(path.read_bytes())
+    for item in digests + segments:
+        digest.update(item.encode())
     return digest.hexdigest()
 
 
@@ -114,15 +252,22 @@ def file_sha256(path):
     return digest.hexdigest()
 
 
+# config keys naming other files and folders a run reads: a gathered sweep, the sequences
+# of a data experiment, the result folder of another experiment
+INPUT_KEYS = ("data_file", "sequences_dir", "single_result", "table_result")
+
+
 def input_paths(config):
     """The data files and folders a run reads, as its config names them: ``data.path``,
-    else ``default_data``, and the files of ``references`` and ``data_file``."""
+    else ``default_data``; the files of ``references``; and :data:`INPUT_KEYS`. Together
+    they hold all a run reads of the experiments it depends on, so that a dependency
+    re-run with the same outputs leaves it current (``replicate-all``)."""
     data = config.get("data") if isinstance(config.get("data"), dict) else {}
     paths = [data.get("path") or config.get("default_data")]
     references = config.get("references")
     if isinstance(references, dict):
         paths.extend(references.values())
-    paths.append(config.get("data_file"))
+    paths.extend(config.get(key) for key in INPUT_KEYS)
     return [str(p) for p in paths if isinstance(p, str) and p]
 
 

@@ -34,7 +34,7 @@ from omegaconf import OmegaConf
 
 from replication.progress import ENVIRONMENT, MODES, bar, mode_for
 from replication.provenance import PROJECT_ROOT, run_provenance
-from replication.report import CONFIG_DIR, build_report, experiment_entries
+from replication.report.build import CONFIG_DIR, build_report, experiment_entries
 from replication.results import read_result_or_none
 from replication.workers import shared_threads
 
@@ -73,7 +73,7 @@ def experiment_keys(entries, configs):
     Parameters
     ----------
     entries : list of tuple
-        ``(order, name, report block)`` of :func:`replication.report.experiment_entries`.
+        ``(order, name, report block)`` of :func:`replication.report.build.experiment_entries`.
     configs : dict
         ``{name: resolved config}`` (:func:`resolved_configs`).
 
@@ -135,7 +135,7 @@ def expected_seconds(results, cache, names):
     return expected
 
 
-def stale_experiments(entries, results, provenance, keys, cache, *, force=False):
+def stale_experiments(entries, results, provenance, keys, cache, *, force=False, cascade=True):
     """Names of the experiments to recompute.
 
     A result is current when it exists (an unreadable ``result.json`` counts as missing),
@@ -157,6 +157,9 @@ def stale_experiments(entries, results, provenance, keys, cache, *, force=False)
         The contents of ``.regenerate-cache.json`` (``{}`` on a fresh clone).
     force : bool
         Every experiment is stale.
+    cascade : bool
+        Whether an experiment is stale because one it depends on is (``False``: only the
+        experiments stale by themselves).
     """
     current = {}
     for _, name, _ in entries:
@@ -171,7 +174,8 @@ def stale_experiments(entries, results, provenance, keys, cache, *, force=False)
         for _, name, block in entries:
             if name in stale:
                 continue
-            if not current[name] or any(d in stale for d in block.get("depends_on", [])):
+            if not current[name] or (cascade and any(d in stale
+                                                     for d in block.get("depends_on", []))):
                 stale.add(name)
                 changed = True
     return stale
@@ -278,14 +282,16 @@ def critical_paths(names, blocks, expected):
 
 
 def run_scheduled(todo, blocks, *, jobs, expected, command_for, log_dir, echo=True,
-                  child_progress="plain"):
+                  child_progress="plain", recheck=(), still_stale=None):
     """Run experiments ``todo`` (names) with ``command_for(name)`` (an argv list), up to
     ``jobs`` at once, respecting ``depends_on`` and ``exclusive`` of ``blocks[name]``;
     return ``{name: (exit status, wall seconds, cpu seconds)}``.
 
     Ready experiments start longest chain first (:func:`critical_paths` of ``expected``
-    seconds). An experiment whose dependency failed is not run (status ``None``). A bar
-    ("experiments") counts the finished ones.
+    seconds). An experiment whose dependency failed is not run (status ``None``). An
+    experiment of ``recheck`` is run only if ``still_stale(name)`` says so once its
+    dependencies have finished (else status ``"current"``). A bar ("experiments") counts
+    the finished ones.
 
     Parameters
     ----------
@@ -306,16 +312,20 @@ def run_scheduled(todo, blocks, *, jobs, expected, command_for, log_dir, echo=Tr
     child_progress : str
         Progress mode of the experiments (``REPLICATION_PROGRESS``): their output is a
         pipe, so ``plain`` lines or ``none``.
+    recheck : collection of str
+        Experiments stale only because one they depend on is.
+    still_stale : callable, optional
+        ``name -> bool``, asked for each of ``recheck`` when it is ready to start.
     """
     with bar(len(todo), "experiments") as shown:
         return _run_scheduled(todo, blocks, jobs=jobs, expected=expected,
                               command_for=command_for, log_dir=log_dir, echo=echo,
                               environ={**os.environ, ENVIRONMENT: child_progress},
-                              shown=shown)
+                              shown=shown, recheck=set(recheck), still_stale=still_stale)
 
 
 def _run_scheduled(todo, blocks, *, jobs, expected, command_for, log_dir, echo, environ,
-                   shown):
+                   shown, recheck, still_stale):
     pending = list(todo)
     priority = critical_paths(todo, blocks, expected)
     shared_env = sharing_environment(jobs, environ)
@@ -342,6 +352,12 @@ def _run_scheduled(todo, blocks, *, jobs, expected, command_for, log_dir, echo, 
             if blocks[name].get("exclusive") and running:
                 continue
             pending.remove(name)
+            if name in recheck and not still_stale(name):
+                outcome[name] = ("current", 0.0, 0.0)
+                shown.update()
+                print(f"[{len(outcome)}/{total}] {name}: up to date (what it reads from the "
+                      "experiments it depends on did not change)", flush=True)
+                continue
             job = _Job(name, command_for(name), log_dir, echo,
                        env=environ if blocks[name].get("exclusive") else shared_env)
             running[job.process.pid] = job
@@ -419,6 +435,14 @@ def _main(argv=None):
     provenance, keys = experiment_keys(entries, configs)
     gathered = [name for _, name, block in entries if block.get("gather")]
     stale = stale_experiments(entries, results, provenance, keys, cache, force=args.force)
+    by_themselves = stale_experiments(entries, results, provenance, keys, cache,
+                                      force=args.force, cascade=False)
+
+    def still_stale(name):
+        """Whether ``name``, current by itself, reads changed inputs now that the
+        experiments it depends on have run."""
+        result = read_result_or_none(results / name / "result.json")
+        return result is None or result.get("provenance") != run_provenance(configs[name])
     todo, timings, cpu = [], {}, {}
     for _, name, _ in entries:
         if (only and name not in only) or name in gathered:
@@ -434,11 +458,15 @@ def _main(argv=None):
         outcome = run_scheduled(todo, blocks, jobs=args.jobs, expected=expected,
                                 command_for=replicate_command(results),
                                 log_dir=results / ".logs", echo=not args.quiet,
-                                child_progress="none" if args.progress == "none" else "plain")
+                                child_progress="none" if args.progress == "none" else "plain",
+                                recheck=stale - by_themselves, still_stale=still_stale)
     failures = []
     for name in todo:  # report order
         code, wall, cpu_seconds = outcome[name]
-        if code == 0:
+        if code == "current":
+            cache[name] = {**_cached(cache, name), "key": keys[name]}
+            timings[name] = "up to date"
+        elif code == 0:
             cache[name] = {"key": keys[name], "seconds": wall}
             timings[name], cpu[name] = wall, cpu_seconds
         else:

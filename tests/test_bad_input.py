@@ -22,7 +22,7 @@ import pytest
 from replication import cli, regenerate, sweep
 from replication.cloth.io import write_npz_deterministic
 from replication.motion.io import write_sequence_folder, write_sequence_npz
-from replication.report import build_report, experiment_entries
+from replication.report.build import build_report, experiment_entries
 
 ROOT = Path(__file__).resolve().parent.parent
 CLOTH_REFERENCE = ROOT / "synthetic_data" / "cloth" / "reference_tau0.5.npz"

@@ -10,7 +10,7 @@ import pytest
 from hydra import compose, initialize_config_dir
 
 from replication.cli import CONFIG_DIR, available_experiments
-from replication.report import build_report, experiment_entries
+from replication.report.build import build_report, experiment_entries
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -7,7 +7,7 @@ import pytest
 
 from replication import provenance
 from replication.regenerate import experiment_keys, resolved_configs, run_scheduled
-from replication.report import experiment_entries
+from replication.report.build import experiment_entries
 
 
 def _relative(files):
@@ -15,7 +15,7 @@ def _relative(files):
 
 
 def test_code_of_a_cloth_runner_excludes_the_motion_code():
-    files = _relative(provenance.module_closure(["replication.cloth.bench"]))
+    files = _relative(provenance.module_closure(["replication.experiments.bench.cloth"]))
     assert "replication/cloth/kernels.py" in files  # imported through cloth.model
     assert "replication/cloth/__init__.py" in files
     assert not any(name.startswith("replication/motion/") for name in files)
@@ -23,28 +23,74 @@ def test_code_of_a_cloth_runner_excludes_the_motion_code():
 
 
 def test_code_hash_depends_on_the_runner():
-    cloth = provenance.code_hash("replication.cloth.bench:bench_cloth")
-    assert cloth == provenance.code_hash("replication.cloth.bench")
-    assert cloth != provenance.code_hash("replication.motion.experiments:benchmark")
+    cloth = provenance.code_hash("replication.experiments.bench.cloth:bench_cloth")
+    assert cloth != provenance.code_hash("replication.experiments.motion:benchmark")
     assert cloth != provenance.code_hash()  # the whole package
 
 
-def test_code_hash_follows_an_edit_of_an_imported_module(tmp_path, monkeypatch):
+def _package(tmp_path, monkeypatch, files):
+    """A throw-away package ``replication`` under ``tmp_path`` made of ``files``."""
     package = tmp_path / "replication"
-    (package / "sub").mkdir(parents=True)
-    (package / "__init__.py").write_text("")
-    (package / "sub" / "__init__.py").write_text("")
-    (package / "sub" / "runner.py").write_text("from replication.sub import helper\n")
-    (package / "sub" / "helper.py").write_text("X = 1\n")
-    (package / "other.py").write_text("Y = 1\n")
+    for name, text in {"__init__.py": "", **files}.items():
+        (package / name).parent.mkdir(parents=True, exist_ok=True)
+        (package / name).write_text(text)
     monkeypatch.setattr(provenance, "PROJECT_ROOT", tmp_path)
     monkeypatch.setattr(provenance, "PACKAGE_DIR", package)
     monkeypatch.setattr(provenance, "CORE_MODULES", ())
+    return package
+
+
+RUNNER = ("from replication.sub import helper\n"
+          "from replication import figure_a, figure_b\n\n\n"
+          "def run():\n    return _draw(helper.X)\n\n\n"
+          "def _draw(x):\n    return figure_a.plot(x)\n\n\n"
+          "def other():\n    return figure_b.plot(1)\n")
+
+
+def test_code_hash_follows_an_edit_of_an_imported_module(tmp_path, monkeypatch):
+    package = _package(tmp_path, monkeypatch, {
+        "sub/__init__.py": "", "sub/runner.py": RUNNER, "sub/helper.py": "X = 1\n",
+        "figure_a.py": "def plot(x):\n    return x\n",
+        "figure_b.py": "def plot(x):\n    return x\n", "other.py": "Y = 1\n"})
     before = provenance.code_hash("replication.sub.runner:run")
     (package / "other.py").write_text("Y = 2\n")
     assert provenance.code_hash("replication.sub.runner:run") == before
+    # another runner's figure in the same module is no part of this runner's code
+    (package / "figure_b.py").write_text("def plot(x):\n    return 2 * x\n")
+    assert provenance.code_hash("replication.sub.runner:run") == before
+    # its own figure, reached through a helper of its module, is
+    (package / "figure_a.py").write_text("def plot(x):\n    return 2 * x\n")
+    changed = provenance.code_hash("replication.sub.runner:run")
+    assert changed != before
     (package / "sub" / "helper.py").write_text("X = 2\n")
+    assert provenance.code_hash("replication.sub.runner:run") != changed
+
+
+def test_a_pure_move_changes_no_code_hash(tmp_path, monkeypatch):
+    package = _package(tmp_path, monkeypatch, {
+        "sub/__init__.py": "", "sub/runner.py": RUNNER,
+        "sub/helper.py": '"""Helper."""\nX = 1\n',
+        "figure_a.py": "def plot(x):\n    return x\n",
+        "figure_b.py": "def plot(x):\n    return x\n"})
+    before = provenance.code_hash("replication.sub.runner:run")
+    # the helper moves to another folder; the runner's import and a docstring follow
+    (package / "sub" / "helper.py").unlink()
+    (package / "lib").mkdir()
+    (package / "lib" / "__init__.py").write_text("")
+    (package / "lib" / "helper.py").write_text('"""Helper, moved."""\n\nX = 1  # same\n')
+    (package / "sub" / "runner.py").write_text(
+        RUNNER.replace("from replication.sub import helper", "from replication.lib import helper"))
+    assert provenance.code_hash("replication.sub.runner:run") == before
+    (package / "lib" / "helper.py").write_text("X = 3\n")
     assert provenance.code_hash("replication.sub.runner:run") != before
+
+
+def test_a_runner_that_is_not_there_is_an_error(tmp_path, monkeypatch):
+    _package(tmp_path, monkeypatch, {"sub/__init__.py": "", "sub/runner.py": RUNNER,
+                                     "sub/helper.py": "X = 1\n",
+                                     "figure_a.py": "", "figure_b.py": ""})
+    with pytest.raises(ValueError, match="no top-level 'missing'"):
+        provenance.code_hash("replication.sub.runner:missing")
 
 
 def test_cache_keys_match_what_replicate_writes():
@@ -138,11 +184,31 @@ def test_stale_experiments_follow_provenance_dependencies_and_cache(tmp_path):
                              force=True) == {"data", "study", "other"}
     changed = dict(provenance, data={"config_sha256": "new", "code_sha256": "c"})
     assert stale_experiments(entries, tmp_path, changed, keys, {}) == {"data", "study"}
+    assert stale_experiments(entries, tmp_path, changed, keys, {}, cascade=False) == {"data"}
     # an earlier run recomputed "data" but stopped before "study": the cached key differs
     cache = {"study": {"key": "key-made-from-old-data"}}
     assert stale_experiments(entries, tmp_path, provenance, keys, cache) == {"study"}
     (tmp_path / "other" / "result.json").unlink()
     assert stale_experiments(entries, tmp_path, provenance, keys, {}) == {"other"}
+
+
+def test_dependents_rerun_only_when_what_they_read_changed(tmp_path, capsys):
+    log = tmp_path / "log.txt"
+    blocks = {"data": {}, "same": {"depends_on": ["data"]}, "changed": {"depends_on": ["data"]}}
+    asked = []
+
+    def still_stale(name):
+        asked.append(name)
+        assert "data" in _intervals(log)   # asked once the dependency has finished
+        return name == "changed"
+
+    outcome = run_scheduled(list(blocks), blocks, jobs=2, expected={},
+                            command_for=_sleeper(log, seconds=0.05), log_dir=tmp_path / "logs",
+                            echo=False, recheck={"same", "changed"}, still_stale=still_stale)
+    assert sorted(asked) == ["changed", "same"]
+    assert outcome["same"][0] == "current" and outcome["changed"][0] == 0
+    assert set(_intervals(log)) == {"data", "changed"}
+    assert "same: up to date" in capsys.readouterr().out
 
 
 def test_critical_paths_put_a_short_data_step_before_long_studies():

@@ -3,7 +3,7 @@
 import pytest
 
 from replication.errors import InputError
-from replication.sensitivity import get_dotted, run_study, set_dotted, verdict
+from replication.experiments.sensitivity import get_dotted, run_study, set_dotted, verdict
 
 
 def _config(**block):

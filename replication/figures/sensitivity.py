@@ -1,4 +1,5 @@
-"""Verdict sensitivity (replication.sensitivity): the rate against each choice, runs as points."""
+"""Verdict sensitivity (replication.experiments.sensitivity): the rate against each choice,
+runs as points."""
 
 from __future__ import annotations
 
@@ -19,7 +20,7 @@ def draw(path, study, *, ylabel, title, n_cols=4):
     ----------
     path : str or Path
     study : dict
-        As :func:`replication.sensitivity.run_study` returns it.
+        As :func:`replication.experiments.sensitivity.run_study` returns it.
     ylabel, title : str
     n_cols : int
     """

@@ -9,7 +9,7 @@ import numpy as np
 
 from replication.figures.cloth_common import save
 
-TABLE1_RTOL = 0.02   # Table 1's tolerance (replication.cloth.table1_readings)
+TABLE1_RTOL = 0.02   # Table 1's tolerance (replication.experiments.table1_readings)
 
 COLOURS = ("tab:blue", "tab:orange", "tab:green", "tab:purple")
 

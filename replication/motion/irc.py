@@ -429,7 +429,7 @@ def refine(frames, xi, eta, omega, region, *, sigma=1.5, relative_threshold=0.15
     equations by Tukey's biweight of the normal-flow residual and composes the solution
     into the estimate. This removes both the bias of the paper's omega (read too fast
     through the image derivatives: the central-difference gradient, the frame difference
-    and noise, as :mod:`replication.motion.omega_bias` measures) and the linearisation
+    and noise, as :mod:`replication.experiments.omega_bias` measures) and the linearisation
     bias of the IRC equation for motions of several pixels.
 
     Parameters

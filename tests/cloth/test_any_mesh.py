@@ -2,7 +2,7 @@
 
 import pytest
 
-from replication.cloth.scale_bench import identification, step_rate
+from replication.experiments.bench.cloth_scale import identification, step_rate
 
 
 @pytest.mark.parametrize("n", [9, 11, 24])

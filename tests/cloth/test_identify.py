@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from replication.cloth import identify_problem as problem
+from replication.cloth.identify import problem
 from replication.cloth.identify import (
     EASettings, PaperEA, identify, mutate, reflect, uniform_crossover,
 )

@@ -11,15 +11,15 @@ import numpy as np
 import pytest
 
 from replication.cli import experiment_defaults, run_experiment
-from replication.cloth import identify_problem as problem
+from replication.cloth.identify import problem
 from replication.cloth.costs import make_cost
 from replication.cloth.io import read_trajectory
 from replication.cloth.model import params_from_vectors, simulate
 from replication.cloth.numerics_variants import (
     Numerics, VariantCost, regenerate, variant_cost, variant_rollout,
 )
-from replication.cloth.table1_sensitivity import compose_reading, sensitivity_study
-from replication.cloth.table1_sensitivity_report import sensitivity_section
+from replication.experiments.table1_sensitivity import compose_reading, sensitivity_study
+from replication.report.table1_sensitivity import sensitivity_section
 from replication.errors import InputError
 from replication.provenance import PROJECT_ROOT
 from replication.sweep import main as gather_main
@@ -147,8 +147,8 @@ def test_study_without_the_sweep_says_so(tmp_path):
 
 
 def test_table1_2_section_links_to_the_sensitivity_heading():
-    from replication.cloth.identify_report import SENSITIVITY_LINK
-    from replication.cloth.table1_sensitivity_report import anchor
+    from replication.report.identify import SENSITIVITY_LINK
+    from replication.report.table1_sensitivity import anchor
 
     title = experiment_defaults("table1_sensitivity")["report"]["title"]
     assert SENSITIVITY_LINK == anchor(title)

@@ -4,7 +4,8 @@ both recover K and tau on noise-free references."""
 import numpy as np
 import pytest
 
-from replication.cloth import identify_structured, regression
+from replication.cloth import regression
+from replication.cloth.identify import structured as identify_structured
 from replication.cloth.identify import identify
 from replication.cloth.io import read_trajectory
 from replication.discrepancy import workflow

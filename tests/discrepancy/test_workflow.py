@@ -11,7 +11,7 @@ import pytest
 
 from replication.cloth.io import write_trajectory
 from replication.discrepancy import generate as gen
-from replication.discrepancy.experiments import discrepancy
+from replication.experiments.discrepancy import discrepancy
 from replication.discrepancy.workflow import analyse
 from replication.errors import InputError
 

@@ -11,7 +11,7 @@ from hydra import compose, initialize_config_dir
 
 from replication.cli import CONFIG_DIR
 from replication.motion.io import write_sequence_npz
-from replication.motion.report import single_section
+from replication.report.motion import single_section
 
 ROOT = Path(__file__).resolve().parents[2]
 REPLICATE = ROOT / ".venv" / "bin" / "replicate"
@@ -29,7 +29,7 @@ def run(*args):
 def test_config_composes(name):
     with initialize_config_dir(config_dir=CONFIG_DIR, version_base="1.3"):
         cfg = compose(config_name="config", overrides=[f"experiment={name}"])
-    assert cfg.name == name and cfg.runner.startswith("replication.motion.experiments:")
+    assert cfg.name == name and cfg.runner.startswith("replication.experiments.motion:")
 
 
 def test_single_rotation_command_line(tmp_path, small_sequence):

@@ -5,8 +5,8 @@ import re
 import pytest
 
 from replication.errors import InputError
-from replication.motion.experiments import accuracy, make_data
-from replication.motion.report import accuracy_section, data_section
+from replication.experiments.motion import accuracy, make_data
+from replication.report.motion import accuracy_section, data_section
 
 from .conftest import small_spec
 
@@ -71,7 +71,7 @@ def test_data_refuses_zero_omega(tmp_path):
     ({"cell": 0}, "cell=0: expected > 0 pixels"),
 ])
 def test_single_rotation_refuses_bad_settings(tmp_path, method, message):
-    from replication.motion.experiments import single_rotation
+    from replication.experiments.motion import single_rotation
 
     config = {"seed": 0, "data": {"path": str(tmp_path / "never_read.npz")}, "method": method}
     with pytest.raises(InputError, match=re.escape(message)):

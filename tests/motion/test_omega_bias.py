@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from replication.errors import InputError
-from replication.motion import omega_bias, omega_bias_report, wave_data
+from replication.motion import wave_data
+from replication.experiments import omega_bias
+from replication.report import omega_bias as omega_bias_report
 from replication.motion.derivatives import sequence_derivatives
 
 SIDE, CENTRE, SIGMA = 48, (22.0, 26.0), 1.5

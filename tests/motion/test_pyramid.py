@@ -144,8 +144,8 @@ def test_generator_turns_the_objects_about_the_truth():
 
 
 def test_segmentation_with_the_pyramid_on_512():
-    from replication.motion import segmentation
-    from replication.motion.segment_experiments import score_objects
+    from replication.motion.segment import pipeline as segmentation
+    from replication.experiments.segment import score_objects
 
     frames, truth, labels = scale_data.render(512, seed=0, scene=dict(
         scale_data.MULTI_SCENE, n_frames=2))
@@ -163,7 +163,7 @@ def test_segmentation_with_the_pyramid_on_512():
 
 
 def test_segmentation_refuses_bad_pyramid_settings():
-    from replication.motion import segmentation
+    from replication.motion.segment import pipeline as segmentation
 
     with pytest.raises(InputError, match=r"method.pyramid.coarse_side=4: expected an integer"):
         segmentation.settings_from({"pyramid": {"coarse_side": 4}})

@@ -6,9 +6,12 @@ import numpy as np
 import pytest
 
 from replication.errors import InputError
-from replication.motion import assignment, disc_ea, segmentation, snakes
+from replication.motion.segment import assignment
+from replication.motion.segment import disc_ea
+from replication.motion.segment import pipeline as segmentation
+from replication.motion.segment import snakes
 from replication.motion.multi_synth import make_multi_sequence
-from replication.motion.segment_experiments import score_objects
+from replication.experiments.segment import score_objects
 from tests.test_cli import assert_regenerated_identically, run_cli
 
 TWO_OBJECTS = {

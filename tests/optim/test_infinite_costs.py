@@ -6,7 +6,7 @@ objective here is a quadratic bowl on [0, 1]^2 with its minimum at ``CENTRE``, N
 an exception, spend the budget, and return a finite best value at a point of the finite
 region, and the objective's trace must never hold a NaN.
 
-The segmentation's disc EA (``replication.motion.disc_ea.DiscEA``) is not run here: it
+The segmentation's disc EA (``replication.motion.segment.disc_ea.DiscEA``) is not run here: it
 computes its own cost from image data (``disc_cost``) and takes no objective.
 """
 

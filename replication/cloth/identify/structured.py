@@ -1,0 +1,174 @@
+"""A structured identifier for the cloth parameters (beyond the paper).
+
+Three stages, each using what the model's structure gives:
+
+1. The identification engine (:func:`replication.cloth.regression.fit`, shared with the
+   discrepancy workflow): for a particle that the deformation constraint did not move,
+   the spring forces ``k (L - l) d / L = k d - (k l) d / L`` are linear in ``k`` and
+   ``k l``, so rest lengths and stiffnesses come from a regression of the observed
+   accelerations (robust to the constraint and to position noise), and tau from a
+   one-dimensional search. No evaluations of the objective.
+2. A scan of tau on the cost with ``k`` and ``l`` fixed (batched grid, then a bounded
+   one-dimensional refinement per tau), which finds the needle-shaped minimum in tau
+   that defeats general optimisers (Figs. 9-10).
+3. Local refinement: the paper's EA on a small box around the estimate.
+
+All cost evaluations go through the shared :class:`~replication.optim.objective.Objective`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+
+from replication.cloth import regression
+from replication.cloth.identify.ea import EASettings, PaperEA
+from replication.cloth.mesh import FAMILY_OF_TYPE, N_TYPES
+from replication.errors import check
+from replication.optim.objective import BudgetExhausted
+
+
+def regression_frames(n_frames, *, first, stride):
+    """Frames ``t`` (with ``t - 1 >= 0`` and ``t + 1`` in the data) used by the regression.
+
+    Parameters
+    ----------
+    n_frames : int
+    first, stride : int
+    """
+    return np.arange(max(first, 1), n_frames - 1, stride)
+
+
+def scan_tau(objective, base, indices, *, n_grid, refine_evals):
+    """Stage 2 for one group of tau entries set to a common value: grid over the bounds
+    (log-spaced), then a bounded scalar refinement between the grid neighbours of the
+    best point. The answer is read from the objective's best-so-far point.
+
+    Parameters
+    ----------
+    objective : Objective
+    base : (n_var,) ndarray
+        The other parameters, fixed.
+    indices : list of int
+        The tau entries set to the scanned value.
+    n_grid : int
+        Grid points.
+    refine_evals : int
+        Evaluations of the scalar refinement.
+    """
+    indices = list(indices)
+    low = objective.lower[indices].max()
+    high = objective.upper[indices].min()
+    grid = np.geomspace(low, high, n_grid)
+    X = np.repeat(base[None, :], n_grid, axis=0)
+    X[:, indices] = grid[:, None]
+    best = int(np.argmin(objective.evaluate(X)))
+    lo, hi = grid[max(best - 1, 0)], grid[min(best + 1, n_grid - 1)]
+
+    def along(tau):
+        trial = base.copy()
+        trial[indices] = tau
+        return float(objective.evaluate(trial[None, :])[0])
+
+    if refine_evals > 0 and hi > lo:
+        minimize_scalar(along, bounds=(lo, hi), method="bounded",
+                        options={"maxiter": refine_evals, "xatol": 1e-6 * (hi - lo)})
+
+
+def tau_groups(model, n_var):
+    """Groups of tau indices scanned together: all taus, then (18 parameters) each spring
+    family's pair, then each type. A spring's clamp changes its particles' mean correction
+    (Jacobi pass), so taus of one family are coupled and are scanned jointly first.
+
+    Parameters
+    ----------
+    model : "5" or "18"
+    n_var : int
+    """
+    if model != "18":
+        return [[n_var - 1]]
+    first = n_var - N_TYPES
+    families = [[first + t for t in range(N_TYPES) if FAMILY_OF_TYPE[t] == f]
+                for f in range(3)]
+    return [list(range(first, n_var)), *families, *[[i] for i in range(first, n_var)]]
+
+
+def structured_identify(trajectory, objective, space, *, rng, settings):
+    """Regression, tau scan and EA refinement (see the module docstring).
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+    objective : Objective over ``space`` (the cost the answer is judged on)
+    space : SearchSpace
+    rng : np.random.Generator
+    settings : dict
+        ``regression: {first, stride}`` (frames of the engine's regression),
+        ``tau_scan: {n_grid, refine_evals, cycles}``,
+        ``refine: {box (relative half-width), ea: {...EASettings}}``.
+
+    Returns
+    -------
+    best : (n_var,) ndarray, info : dict
+    """
+    model = space.model
+    reg = settings["regression"]
+    frames = regression_frames(trajectory.n_frames, first=reg["first"], stride=reg["stride"])
+    check(frames.size > 0, f"regression.first={reg['first']}: no frame of the "
+                           f"{trajectory.n_frames}-frame data left for the regression")
+    fitted = regression.fit(regression.prepare(trajectory), frames, model=model)
+    reg_info = {"how": fitted.how, "tau": float(fitted.base.tau[0]),
+                "particle_frames_used": int(fitted.mask.sum())}
+    if model == "18":
+        rest, k, tau = fitted.base.rest, fitted.base.k, fitted.base.tau
+    else:
+        rest = fitted.base.rest[[0, 2, 4]]
+        k, tau = fitted.base.k[:1], fitted.base.tau[:1]
+    x = np.clip(np.r_[rest, k, tau], objective.lower, objective.upper)
+    objective.evaluate(x[None, :])
+    info = {"regression": reg_info, "regression_vector": x.tolist()}
+    scan = settings["tau_scan"]
+    try:
+        # coordinate-wise scans, repeated: with several taus, one scan's answer depends
+        # on the others' current values
+        for _ in range(int(scan.get("cycles", 1))):
+            for group in tau_groups(model, space.n_var):
+                scan_tau(objective, x, group, n_grid=scan["n_grid"],
+                         refine_evals=scan["refine_evals"])
+                x = objective.best_point.copy()
+        info["scan_vector"] = x.tolist()
+        info["evals_after_scan"] = objective.n_evals
+        refine = settings["refine"]
+        ea_settings = EASettings.from_config(refine["ea"])
+        if ea_settings.generations > 0:
+            box = float(refine["box"])
+            lower = np.maximum(objective.lower, x * (1 - box))
+            upper = np.minimum(objective.upper, x * (1 + box))
+            initial = lower + rng.random((ea_settings.pop_size, x.size)) * (upper - lower)
+            initial[0] = x
+            local = _BoxedObjective(objective, lower, upper)
+            ea = PaperEA(local, ea_settings, rng, initial).run()
+            info["refine_history"] = [h["best"] for h in ea.history]
+    except BudgetExhausted:
+        pass
+    best = objective.best_point if objective.best_point is not None else x
+    return np.asarray(best), info
+
+
+class _BoxedObjective:
+    """The same objective (same counter, same trace) seen through a smaller box."""
+
+    def __init__(self, objective, lower, upper):
+        self.inner = objective
+        self.lower, self.upper = lower, upper
+
+    @property
+    def n_var(self):
+        return self.inner.n_var
+
+    @property
+    def n_evals(self):
+        return self.inner.n_evals
+
+    def evaluate(self, X):
+        return self.inner.evaluate(X)

@@ -1,0 +1,1 @@
+"""Benchmarks: throughput and cost-growth curves (``bench_*`` experiments, issue 13)."""

@@ -1,0 +1,225 @@
+"""The paper's EA, the structured identifier and pymoo/scipy baselines on one objective.
+
+Every optimiser minimises the same cost through the same counted
+:class:`~replication.optim.objective.Objective` with the same bounds and budget, over
+``n_seeds`` seeds per reference run. From each run's best-so-far trace: success (all
+parameters within ``success_rtol``) at each fixed budget, evaluations to success, the
+best cost and the parameter errors at each budget.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numba
+import numpy as np
+
+from replication.cloth.identify import problem
+from replication.cloth.identify import EASettings, PaperEA
+from replication.experiments.identify_common import check_common, load_cases, outcome, run_rng
+from replication.cloth.identify.structured import structured_identify
+from replication.errors import check
+from replication.figures import cloth_baselines_ecdf
+from replication.optim.pymoo_adapters import ALGORITHMS, run_pymoo
+from replication.optim.scipy_adapters import run_least_squares
+from replication.progress import bar, progress
+from replication.workers import process_pool
+
+KINDS = ("paper_ea", "structured", "pymoo", "least_squares")
+
+
+def _check_optimisers(optimisers):
+    check(len(optimisers) > 0, "optimisers: expected at least one entry")
+    for entry in optimisers:
+        kind = entry.get("kind")
+        check(kind in KINDS, f"optimisers: {entry.get('name')}: kind={kind!r}; expected one "
+                             f"of {', '.join(KINDS)}")
+        if kind == "pymoo":
+            check(entry.get("algorithm") in ALGORITHMS,
+                  f"optimisers: {entry['name']}: algorithm={entry.get('algorithm')!r}; "
+                  f"expected one of {', '.join(ALGORITHMS)}")
+        if kind == "paper_ea":
+            EASettings.from_config(entry["ea"])
+
+
+def run_optimiser(entry, case, *, budget, rng, seed, rest_spread):
+    """One run of optimiser ``entry`` on ``case`` with ``budget`` evaluations.
+
+    Returns the objective (its trace holds the run) and the optimiser's own info.
+
+    Parameters
+    ----------
+    entry : dict
+        One item of the config's ``optimisers`` (``name``, ``kind`` and its settings).
+    case : Case
+    budget : int
+        Evaluations allowed.
+    rng : np.random.Generator
+    seed : int
+        pymoo's seed.
+    rest_spread : float
+        Initial spread of rest lengths (paper EA).
+    """
+    kind = entry["kind"]
+    objective = problem.cloth_objective(case.cost, case.space, budget=budget,
+                                        with_residuals=kind == "least_squares")
+    info = {}
+    if kind == "paper_ea":
+        settings = EASettings.from_config(entry["ea"])
+        initial = problem.random_population(case.space, settings.pop_size, rng,
+                                            rest_spread=rest_spread)
+        PaperEA(objective, settings, rng, initial).run()
+    elif kind == "structured":
+        _, info = structured_identify(case.trajectory, objective, case.space, rng=rng,
+                                      settings=entry["settings"])
+        info = {"regression": info["regression"]}
+    elif kind == "pymoo":
+        info = run_pymoo(objective, entry["algorithm"], seed=seed,
+                         options=entry.get("options"))
+    else:
+        info = run_least_squares(objective, rng=rng, options=entry.get("options"))
+        info = {"starts": info["starts"]}
+    return objective, info
+
+
+def _checkpoints(budget):
+    """About 40 log-spaced evaluation counts from 1 to ``budget`` for convergence plots."""
+    return np.unique(np.geomspace(1, budget, 40).round().astype(int)).tolist()
+
+
+def score_run(objective, case, budgets, rtol):
+    """Success, cost and errors at each budget, and evaluations to success, from a trace.
+
+    Parameters
+    ----------
+    objective : Objective
+        After the run: its trace.
+    case : Case
+    budgets : list of int
+    rtol : float
+        Success tolerance.
+    """
+    trace = objective.trace
+    record = {"n_evals": objective.n_evals,
+              "curve": [trace.best_at(b) for b in _checkpoints(max(budgets))],
+              "at_budget": {}}
+    for b in budgets:
+        point = trace.point_at(b)
+        entry = {"cost": trace.best_at(b)}
+        if case.truth is not None and point is not None:
+            errors = problem.relative_errors(point, case.truth)
+            entry["errors"] = errors.tolist()
+            entry["success"] = problem.is_success(point, case.truth, rtol)
+            entry["outcome"] = outcome(point, case.truth, rtol)
+        record["at_budget"][str(b)] = entry
+    if case.truth is not None:
+        record["evals_to_success"] = trace.first_eval_where(
+            lambda x: problem.is_success(x, case.truth, rtol))
+    return record
+
+
+def _aggregate(records, budgets, names):
+    """Per-optimiser summary over seeds."""
+    out = {"n_runs": len(records)}
+    hits = [r.get("evals_to_success") for r in records]
+    reached = sorted(h for h in hits if h is not None)
+    out["evals_to_success"] = hits
+    out["median_run_seconds"] = float(np.median([r["run_seconds"] for r in records]))
+    out["median_evals_to_success"] = float(np.median(reached)) if reached else None
+    for b in budgets:
+        rows = [r["at_budget"][str(b)] for r in records]
+        summary = {"median_cost": float(np.median([row["cost"] for row in rows]))}
+        if "success" in rows[0]:
+            summary["success_rate"] = float(np.mean([row["success"] for row in rows]))
+            summary["valley_rate"] = float(np.mean(
+                [row["outcome"] == "inactive-constraint valley" for row in rows]))
+            errors = np.abs(np.array([row["errors"] for row in rows]))
+            summary["median_abs_errors"] = dict(zip(names, np.median(errors, 0).tolist()))
+        out[str(b)] = summary
+    curves = np.array([r["curve"] for r in records], dtype=float)
+    out["median_curve"] = np.median(curves, axis=0).tolist()
+    return out
+
+
+_CASES = {}
+
+
+def _case_for(config, label):
+    """The :class:`Case` of ``label``, loaded once per process."""
+    key = (label, repr(config["cost"]), repr(config["bounds"]), repr(config.get("data")))
+    if key not in _CASES:
+        _CASES[key] = next(c for c in load_cases(config) if c.label == label)
+    return _CASES[key]
+
+
+def _one_run(task):
+    """One (reference, optimiser, seed) run; top level so that worker processes can run it."""
+    config, label, case_index, opt_index, i, budgets = task
+    # most baselines evaluate one or a few vectors at a time: a parallel kernel region per
+    # call costs more than it gains, so each worker runs its kernels on one thread
+    numba.set_num_threads(min(int(config["threads_per_worker"]), numba.config.NUMBA_NUM_THREADS))
+    case = _case_for(config, label)
+    entry = config["optimisers"][opt_index]
+    seed = int(run_rng(config["seed"], case_index, opt_index, i).integers(2**31))
+    rng = run_rng(config["seed"], case_index, opt_index, i, 1)
+    start = time.perf_counter()
+    objective, info = run_optimiser(entry, case, budget=budgets[-1], rng=rng, seed=seed,
+                                    rest_spread=config["init"]["rest_spread"])
+    record = score_run(objective, case, budgets, float(config["success_rtol"]))
+    record["info"] = info
+    record["run_seconds"] = time.perf_counter() - start
+    return record
+
+
+def _map(tasks, workers):
+    """Run tasks in order, in ``workers`` processes (1: in this process). Every run is
+    seeded on its own, so the results do not depend on the number of workers."""
+    label = "runs (reference x optimiser x seed)"
+    if workers == 1:
+        threads = numba.get_num_threads()
+        try:
+            return [_one_run(task) for task in bar(tasks, label)]
+        finally:
+            numba.set_num_threads(threads)
+    with process_pool(workers) as pool:
+        return list(bar(pool.map(_one_run, tasks, chunksize=1), label, total=len(tasks)))
+
+
+def baselines_study(config, out):
+    """Runner of ``cloth_baselines``: every optimiser, ``n_seeds`` seeds, each reference.
+
+    Parameters
+    ----------
+    config, out
+        The resolved ``cloth_baselines`` config (plain dict, docs/experiments.md) and the run's
+        output folder.
+    """
+    check_common(config)
+    optimisers = config["optimisers"]
+    _check_optimisers(optimisers)
+    budgets = sorted(int(b) for b in config["budgets"])
+    check(budgets[0] >= 1, f"budgets={budgets}: expected positive evaluation counts")
+    workers = int(config.get("workers", 1))
+    check(workers >= 1, f"workers={workers}: expected at least 1 process")
+    cases = load_cases(config)
+    names = list(cases[0].space.names)
+    n_seeds = int(config["n_seeds"])
+    tasks = [(config, case.label, ci, oi, i, budgets) for ci, case in enumerate(cases)
+             for oi in range(len(optimisers)) for i in range(n_seeds)]
+    progress(f"{len(tasks)} runs in {workers} process(es)")
+    records = iter(_map(tasks, workers))
+    summary, runs = {}, {}
+    for case in cases:
+        summary[case.label], runs[case.label] = {}, {}
+        for entry in optimisers:
+            chunk = [next(records) for _ in range(n_seeds)]
+            runs[case.label][entry["name"]] = chunk
+            summary[case.label][entry["name"]] = _aggregate(chunk, budgets, names)
+    checkpoints = _checkpoints(budgets[-1])
+    figures = cloth_baselines_ecdf.plot(summary, checkpoints, budgets[-1],
+                                        ecdf_name=config["figures"]["ecdf"],
+                                        convergence_name=config["figures"]["convergence"],
+                                        figure_dir=config["figure_dir"])
+    return {"budgets": budgets, "names": names, "checkpoints": checkpoints,
+            "summary": summary, "runs": runs, "figures": figures,
+            "cost_used": config["cost"]}

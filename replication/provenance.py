@@ -143,10 +143,21 @@ def code_text(node):
     return ast.dump(_CodeOnly().visit(copy.deepcopy(node)), include_attributes=False)
 
 
-def source_digest(path):
-    """sha256 of :func:`code_text` of a source file."""
-    tree = ast.parse(Path(path).read_text(), filename=str(path))
-    return hashlib.sha256(code_text(tree).encode()).hexdigest()
+def source_digests(path):
+    """sha256 of the :func:`code_text` of each top-level statement of a source file
+    (``__all__``, which only names, left out). Statements, not files: a definition moved
+    from one module to another, or a module split in two, is the same code."""
+    tree = _CodeOnly().visit(ast.parse(Path(path).read_text(), filename=str(path)))
+    return [hashlib.sha256(code_text(node).encode()).hexdigest() for node in tree.body
+            if not _names_only(node)]
+
+
+def _names_only(node):
+    """Whether a top-level statement is an import or the ``__all__`` list."""
+    if isinstance(node, (ast.Import, ast.ImportFrom)):
+        return True
+    targets = node.targets if isinstance(node, ast.Assign) else []
+    return any(isinstance(t, ast.Name) and t.id == "__all__" for t in targets)
 
 
 def _bindings(tree):
@@ -217,9 +228,9 @@ def code_hash(runner=None):
     ``runner``: ``"module:function"``: the definitions that function reaches in its module
     and every package module those import (:func:`runner_parts`, :func:`module_closure`);
     a module name: that module's closure; ``None``: the whole package. Both with
-    :data:`CORE_MODULES`. Each distinct :func:`code_text` of a file counts once, in no
-    order of paths (docs/results.md, "Provenance"): a pure move of code between modules
-    changes no hash.
+    :data:`CORE_MODULES`. Each distinct top-level statement counts once by its
+    :func:`code_text`, in no order of files or paths (:func:`source_digests`; docs/results.md,
+    "Provenance and moves"): a pure move of code between modules changes no hash.
     """
     segments = []
     if runner is None:
@@ -232,8 +243,8 @@ def code_hash(runner=None):
             parts = module.split(".")
             roots = roots + [".".join(parts[:i]) for i in range(1, len(parts))]
         files = module_closure([*roots, *CORE_MODULES])
-    # a set: the empty __init__.py of a package a move adds is the same text as the others
-    digests = sorted({source_digest(path) for path in files})
+    # a set: a statement is the same code wherever it lives
+    digests = sorted({digest for path in files for digest in source_digests(path)})
     lock = PROJECT_ROOT / "requirements.lock"
     if lock.exists():
         digests.append(file_sha256(lock))

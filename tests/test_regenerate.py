@@ -85,6 +85,19 @@ def test_a_pure_move_changes_no_code_hash(tmp_path, monkeypatch):
     assert provenance.code_hash("replication.sub.runner:run") != before
 
 
+def test_splitting_a_module_changes_no_code_hash(tmp_path, monkeypatch):
+    runner = "from replication import lib\n\n\ndef run():\n    return lib.f()\n"
+    package = _package(tmp_path, monkeypatch, {
+        "runner.py": runner, "lib.py": "X = 1\n\n\ndef f():\n    return X\n"})
+    before = provenance.code_hash("replication.runner:run")
+    (package / "lib.py").write_text('"""Now two modules."""\nfrom replication.part import X\n\n\n'
+                                    "def f():\n    return X\n")
+    (package / "part.py").write_text("X = 1\n")
+    assert provenance.code_hash("replication.runner:run") == before
+    (package / "part.py").write_text("X = 2\n")
+    assert provenance.code_hash("replication.runner:run") != before
+
+
 def test_a_runner_that_is_not_there_is_an_error(tmp_path, monkeypatch):
     _package(tmp_path, monkeypatch, {"sub/__init__.py": "", "sub/runner.py": RUNNER,
                                      "sub/helper.py": "X = 1\n",

@@ -154,7 +154,7 @@ class PaperEA:
     settings : EASettings
     rng : np.random.Generator
     initial : (pop_size, n_var) ndarray
-        The initial population (see ``identify_problem.random_population``).
+        The initial population (see ``problem.random_population``).
 
     Attributes after :meth:`run`: ``X`` (pop, n_var) and ``F`` (pop,) sorted best first,
     ``history`` (list per generation of ``{generation, n_evals, best, best_point}``).

@@ -3,10 +3,9 @@ report sections, no folder crowded with one name prefix."""
 
 from __future__ import annotations
 
-import ast
 import collections
 
-from replication.provenance import PACKAGE_DIR, PROJECT_ROOT, module_file
+from replication.provenance import PACKAGE_DIR, PROJECT_ROOT, _imported_modules
 
 
 def _modules():
@@ -20,23 +19,9 @@ def _modules():
 
 
 def _imports(path, name):
-    """Package modules imported anywhere in ``path`` (``from a import b``: ``a.b`` when it
-    is a module, else ``a``), parents excluded."""
-    found = set()
-    is_package = path.name == "__init__.py"
-    for node in ast.walk(ast.parse(path.read_text())):
-        if isinstance(node, ast.Import):
-            found.update(alias.name for alias in node.names)
-        elif isinstance(node, ast.ImportFrom):
-            module = node.module or ""
-            if node.level:
-                anchor = name.split(".")
-                anchor = anchor[:len(anchor) - node.level + (1 if is_package else 0)]
-                module = ".".join(anchor + ([module] if module else []))
-            for alias in node.names:
-                full = f"{module}.{alias.name}"
-                found.add(full if module_file(full) is not None else module)
-    return {m for m in found if module_file(m) is not None and m != name}
+    """Package modules imported anywhere in ``path`` (the closure's own reading), itself
+    excluded."""
+    return _imported_modules(path, name) - {name}
 
 
 def _graph():

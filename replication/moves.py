@@ -16,8 +16,8 @@ hash under the earlier scheme and under the current one, and, on the working tre
 current-scheme hash of the (moved) runner. When the two current-scheme hashes are equal, no
 code the runner reaches changed except its imports and paths: the record maps the earlier
 hash to the current one (``results/provenance-moves.json``). :func:`replication.provenance.
-same_code` then accepts a result with the earlier hash as made by the current code, for
-as long as the code keeps the recorded current hash.
+accepted_code_hashes` then counts a result with the earlier hash as made by the current
+code, for as long as the code keeps the recorded current hash.
 """
 
 from __future__ import annotations

@@ -5,8 +5,8 @@ imports, directly or through other modules of the package (found statically, fro
 source), the modules that write every result (:data:`CORE_MODULES`) and the pinned
 requirements: a change to the cloth code does not invalidate a motion result. Within the
 runner's own module, only the definitions its function reaches count, so a change to
-another runner's figure leaves it current. Files count by what their code does, not by
-where it lives: a pure move changes no hash (:func:`code_text`).
+another runner's figure leaves it current. Code counts by what it does, statement by
+statement, not by where it lives: a pure move changes no hash (:func:`code_text`).
 """
 
 from __future__ import annotations
@@ -53,7 +53,7 @@ def module_file(name):
     return None
 
 
-def _imported_modules(path, name):
+def imported_modules(path, name):
     """Names of this package's modules imported by the source file ``path`` (module
     ``name``): ``import a.b``, ``from a import b`` (``a.b`` when it is a module) and
     relative imports."""
@@ -86,16 +86,15 @@ def _moves():
         return {}
 
 
-def same_code(recorded, runner):
-    """Whether a result whose ``code_sha256`` is ``recorded`` was made by the current code
-    of ``runner``: the same hash, or the earlier scheme's hash of code that has only moved
-    since (:mod:`replication.moves`) and not changed after."""
+def accepted_code_hashes(runner):
+    """The ``code_sha256`` values of results made by the current code of ``runner``: its
+    hash, and the earlier scheme's hash of code that has only moved since
+    (:mod:`replication.moves`) and not changed after. Compute once, test many runs."""
     now = code_hash(runner)
-    if recorded == now:
-        return True
     moved = _moves().get(runner)
-    return bool(moved) and moved["legacy_code_sha256"] == recorded \
-        and moved["code_sha256"] == now
+    if moved and moved["code_sha256"] == now:
+        return {now, moved["legacy_code_sha256"]}
+    return {now}
 
 
 def legacy_runner(runner):
@@ -114,7 +113,7 @@ def module_closure(roots):
         seen.add(name)
         parts = name.split(".")
         todo.extend(".".join(parts[:i]) for i in range(1, len(parts)))
-        todo.extend(_imported_modules(module_file(name), name))
+        todo.extend(imported_modules(module_file(name), name))
     return sorted({module_file(name) for name in seen})
 
 
@@ -143,19 +142,26 @@ def code_text(node):
     return ast.dump(_CodeOnly().visit(copy.deepcopy(node)), include_attributes=False)
 
 
+_DIGESTS = {}   # sha256 of a file's bytes -> digests: replicate-all hashes ~30 runners at once
+
+
 def source_digests(path):
     """sha256 of the :func:`code_text` of each top-level statement of a source file
     (``__all__``, which only names, left out). Statements, not files: a definition moved
     from one module to another, or a module split in two, is the same code."""
-    tree = _CodeOnly().visit(ast.parse(Path(path).read_text(), filename=str(path)))
-    return [hashlib.sha256(code_text(node).encode()).hexdigest() for node in tree.body
-            if not _names_only(node)]
+    source = Path(path).read_bytes()
+    key = hashlib.sha256(source).hexdigest()
+    if key not in _DIGESTS:
+        # parsed afresh, so stripped in place (code_text would copy every statement)
+        tree = _CodeOnly().visit(ast.parse(source, filename=str(path)))
+        _DIGESTS[key] = [
+            hashlib.sha256(ast.dump(node, include_attributes=False).encode()).hexdigest()
+            for node in tree.body if not _is_all(node)]
+    return _DIGESTS[key]
 
 
-def _names_only(node):
-    """Whether a top-level statement is an import or the ``__all__`` list."""
-    if isinstance(node, (ast.Import, ast.ImportFrom)):
-        return True
+def _is_all(node):
+    """Whether a top-level statement is the ``__all__`` list (it only names)."""
     targets = node.targets if isinstance(node, ast.Assign) else []
     return any(isinstance(t, ast.Name) and t.id == "__all__" for t in targets)
 

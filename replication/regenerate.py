@@ -33,7 +33,7 @@ from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
 from replication.progress import ENVIRONMENT, MODES, bar, mode_for
-from replication.provenance import PROJECT_ROOT, run_provenance
+from replication.provenance import PROJECT_ROOT, inputs_hash, run_provenance
 from replication.report.build import CONFIG_DIR, build_report, experiment_entries
 from replication.results import read_result_or_none
 from replication.workers import shared_threads
@@ -225,34 +225,6 @@ def replicate_command(results):
     return command_for
 
 
-def sharing_environment(jobs, environ=None, cpus=None):
-    """Environment of experiments that share the CPUs with others (``jobs > 1``).
-
-    numba's OpenMP threads spin while they wait for work (libgomp's default); next to
-    another experiment the spinning takes CPU from it (measured here: an experiment beside
-    fig09_10 used 43-58 s of CPU spinning, 27 s passive). ``OMP_WAIT_POLICY=PASSIVE`` makes
-    them sleep. Even asleep, a parallel region waits for its slowest thread, and beside
-    another experiment some thread is always descheduled. OpenBLAS's threads busy-wait too,
-    and ignore the OpenMP policy: one ``discrepancy_blind`` dataset took 6.6 s of CPU alone
-    with the default threads, 29.6 s beside two busy processes, and 5.1 s there with one
-    numba thread and one OpenBLAS thread. So each shared experiment gets ``cpus // jobs``
-    numba, OpenMP and BLAS threads (:func:`replication.workers.shared_threads`). None
-    changes a result: every parallel loop of the package runs independent jobs (an
-    individual, a frame, an omega), each summed in order, and the votes are integers.
-    Benchmarks run alone with the defaults. Values set by the user are kept.
-
-    Parameters
-    ----------
-    jobs : int
-        Experiments run at once.
-    environ : dict, optional
-        The environment to start from (default ``os.environ``).
-    cpus : int, optional
-        CPUs to share (default ``os.cpu_count()``).
-    """
-    return shared_threads(os.environ if environ is None else environ, jobs, cpus)
-
-
 def critical_paths(names, blocks, expected):
     """Expected seconds from the start of each experiment to the end of the longest chain
     of experiments that depend on it (its own time plus the longest of its dependents'):
@@ -328,7 +300,7 @@ def _run_scheduled(todo, blocks, *, jobs, expected, command_for, log_dir, echo, 
                    shown, recheck, still_stale):
     pending = list(todo)
     priority = critical_paths(todo, blocks, expected)
-    shared_env = sharing_environment(jobs, environ)
+    shared_env = shared_threads(environ, jobs)   # replication.workers: why
     running, outcome = {}, {}
     total = len(pending)
 
@@ -442,7 +414,9 @@ def _main(argv=None):
         """Whether ``name``, current by itself, reads changed inputs now that the
         experiments it depends on have run."""
         result = read_result_or_none(results / name / "result.json")
-        return result is None or result.get("provenance") != run_provenance(configs[name])
+        # its config and code were current (by_themselves): only the inputs can differ
+        now = {**provenance[name], "inputs_sha256": inputs_hash(configs[name])}
+        return result is None or result.get("provenance") != now
     todo, timings, cpu = [], {}, {}
     for _, name, _ in entries:
         if (only and name not in only) or name in gathered:

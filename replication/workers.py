@@ -1,14 +1,17 @@
-"""Worker processes for experiments whose runs are independent: one pool for all of them.
+"""Processes that share the CPUs: worker pools, and the experiments ``replicate-all`` runs
+side by side.
 
-Every pool starts its workers with ``spawn`` (a fresh interpreter: no thread pool of the
-parent is copied half-started) and with the CPUs shared out: each worker gets
-``cpus // workers`` numba, OpenMP and BLAS threads (at least one). Without that, two
-workers on two cores each start two OpenBLAS threads that busy-wait for one another: one
-``discrepancy_blind`` dataset took 6.6 s of CPU alone and 29.6 s next to two busy
-processes, 5.1 s there with one thread of each kind. Values the user set are kept.
+Each of ``n`` processes gets ``cpus // n`` numba, OpenMP and BLAS threads (at least one),
+and idle OpenMP threads sleep. Without that, processes on two cores each start two
+threads that busy-wait for one another (OpenBLAS ignores the OpenMP policy): one
+``discrepancy_blind`` dataset took 6.6 s of CPU alone with the default threads, 29.6 s
+beside two busy processes, and 5.1 s there with one thread of each kind. Values the user
+set are kept.
 
-The thread counts change no result: the parallel loops of the package run independent
-jobs, each summed in order.
+numba's thread count changes no result (its parallel loops run independent jobs, each
+summed in order); OpenBLAS's does, at round-off: the discrepancy studies moved by up to
+2.3e-7 relative between two and one BLAS threads, more where residuals are round-off.
+The pool of ``discrepancy_outside`` is its own (fork), as its documented sweep ran with.
 """
 
 from __future__ import annotations
@@ -24,7 +27,8 @@ THREAD_VARIABLES = ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREAD
 
 def shared_threads(environ, shares, cpus=None):
     """``environ`` with ``cpus // shares`` threads (at least 1) for each threaded library,
-    and idle OpenMP threads asleep, unless the variable is already set.
+    and idle OpenMP threads asleep, unless the variable is already set; unchanged for one
+    process (``replicate-all`` gives benchmarks, which run alone, the defaults).
 
     Parameters
     ----------

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import collections
 
-from replication.provenance import PACKAGE_DIR, PROJECT_ROOT, _imported_modules
+from replication.provenance import PACKAGE_DIR, PROJECT_ROOT, imported_modules
 
 
 def _modules():
@@ -21,7 +21,7 @@ def _modules():
 def _imports(path, name):
     """Package modules imported anywhere in ``path`` (the closure's own reading), itself
     excluded."""
-    return _imported_modules(path, name) - {name}
+    return imported_modules(path, name) - {name}
 
 
 def _graph():

@@ -233,19 +233,19 @@ def test_critical_paths_put_a_short_data_step_before_long_studies():
 
 
 def test_shared_runs_wait_passively_unless_the_user_chose():
-    from replication.regenerate import sharing_environment
+    from replication.workers import shared_threads
 
-    assert sharing_environment(2, {})["OMP_WAIT_POLICY"] == "PASSIVE"
-    assert "OMP_WAIT_POLICY" not in sharing_environment(1, {})
-    assert sharing_environment(2, {"OMP_WAIT_POLICY": "ACTIVE"})["OMP_WAIT_POLICY"] == "ACTIVE"
+    assert shared_threads({}, 2)["OMP_WAIT_POLICY"] == "PASSIVE"
+    assert "OMP_WAIT_POLICY" not in shared_threads({}, 1)
+    assert shared_threads({"OMP_WAIT_POLICY": "ACTIVE"}, 2)["OMP_WAIT_POLICY"] == "ACTIVE"
     # each of the experiments run at once gets its share of the CPUs as numba threads
-    assert sharing_environment(2, {}, cpus=2)["NUMBA_NUM_THREADS"] == "1"
-    assert sharing_environment(2, {}, cpus=8)["NUMBA_NUM_THREADS"] == "4"
-    assert sharing_environment(4, {}, cpus=2)["NUMBA_NUM_THREADS"] == "1"
-    assert "NUMBA_NUM_THREADS" not in sharing_environment(1, {}, cpus=2)
-    assert sharing_environment(2, {"NUMBA_NUM_THREADS": "2"}, cpus=2)["NUMBA_NUM_THREADS"] == "2"
+    assert shared_threads({}, 2, cpus=2)["NUMBA_NUM_THREADS"] == "1"
+    assert shared_threads({}, 2, cpus=8)["NUMBA_NUM_THREADS"] == "4"
+    assert shared_threads({}, 4, cpus=2)["NUMBA_NUM_THREADS"] == "1"
+    assert "NUMBA_NUM_THREADS" not in shared_threads({}, 1, cpus=2)
+    assert shared_threads({"NUMBA_NUM_THREADS": "2"}, 2, cpus=2)["NUMBA_NUM_THREADS"] == "2"
     # and as BLAS threads, which busy-wait beside another process whatever OpenMP's policy
-    shared = sharing_environment(2, {}, cpus=4)
+    shared = shared_threads({}, 2, cpus=4)
     assert shared["OPENBLAS_NUM_THREADS"] == shared["OMP_NUM_THREADS"] == "2"
 
 

@@ -13,12 +13,11 @@ import time
 
 import numpy as np
 
-from replication.cloth.identify import problem
 from replication.cloth.costs import structural_length
-from replication.cloth.identify import EASettings, PaperEA, identify
-from replication.experiments.identify_common import data_files, run_rng
+from replication.cloth.identify import EASettings, PaperEA, identify, problem
 from replication.cloth.io import read_trajectory
 from replication.errors import InputError, check
+from replication.experiments.identify_common import data_files, run_rng
 from replication.progress import bar, mode_for, progress
 
 METHODS = ("structured", "paper_ea")

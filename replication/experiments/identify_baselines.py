@@ -14,11 +14,10 @@ import time
 import numba
 import numpy as np
 
-from replication.cloth.identify import problem
-from replication.cloth.identify import EASettings, PaperEA
-from replication.experiments.identify_common import check_common, load_cases, outcome, run_rng
+from replication.cloth.identify import EASettings, PaperEA, problem
 from replication.cloth.identify.structured import structured_identify
 from replication.errors import check
+from replication.experiments.identify_common import check_common, load_cases, outcome, run_rng
 from replication.figures import cloth_baselines_ecdf
 from replication.optim.pymoo_adapters import ALGORITHMS, run_pymoo
 from replication.optim.scipy_adapters import run_least_squares

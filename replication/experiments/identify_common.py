@@ -11,8 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from replication.cloth.identify import problem
-from replication.cloth.identify import EASettings, PaperEA
+from replication.cloth.identify import EASettings, PaperEA, problem
 from replication.cloth.io import read_trajectory
 from replication.errors import check
 

@@ -10,11 +10,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from replication.experiments.identify_common import (
-    check_common, load_cases, paper_ea_run, run_rng, score)
 from replication.cloth.identify.problem import cost_from_config
 from replication.cloth.model import params_from_vectors
 from replication.errors import check
+from replication.experiments.identify_common import (
+    check_common,
+    load_cases,
+    paper_ea_run,
+    run_rng,
+    score,
+)
 from replication.figures import fig09_10_landscapes
 from replication.progress import bar, progress
 

@@ -10,9 +10,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from replication.experiments.identify_common import (
-    check_common, load_cases, paper_ea_run, population_rows, run_rng, score)
 from replication.errors import check
+from replication.experiments.identify_common import (
+    check_common,
+    load_cases,
+    paper_ea_run,
+    population_rows,
+    run_rng,
+    score,
+)
 from replication.figures import cloth_paper_ea_convergence
 from replication.progress import bar, progress
 

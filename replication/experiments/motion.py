@@ -16,12 +16,17 @@ import numpy as np
 from replication.errors import InputError, check
 from replication.motion import baselines, irc, pyramid, single
 from replication.motion.derivatives import sequence_derivatives
-from replication.motion.io import (read_manifest_sequences, read_sequence,
-                                   write_sequence_folder, write_sequence_npz)
+from replication.motion.io import (
+    read_manifest_sequences,
+    read_sequence,
+    write_sequence_folder,
+    write_sequence_npz,
+)
 from replication.motion.synth import make_sequence
 from replication.progress import bar, progress
 from replication.provenance import file_sha256
 from replication.results import write_json_atomic
+
 
 def _sequence_spec(base, override):
     spec = json.loads(json.dumps(base))
@@ -147,8 +152,7 @@ def _truth_of(sequence):
 
 def _draw_figures(sequence, found, settings, figure_dir):
     """Figs. 1-4 for one sequence, from the arrays of :func:`single.find_rotation`."""
-    from replication.figures import (fig01_flow, fig02_peak_vs_omega, fig03_accumulator,
-                                     fig04_pixels)
+    from replication.figures import fig01_flow, fig02_peak_vs_omega, fig03_accumulator, fig04_pixels
 
     figure_dir.mkdir(parents=True, exist_ok=True)
     truth = _truth_of(sequence)

@@ -19,10 +19,10 @@ from pathlib import Path
 
 import numpy as np
 
-from replication.figures import sensitivity as figure
 from replication.experiments import motion as experiments
 from replication.experiments import segment as segment_experiments
 from replication.experiments.sensitivity import run_study
+from replication.figures import sensitivity as figure
 
 FLOW_METHODS = ("TV-L1 flow + rigid fit", "iLK flow + rigid fit")
 FAITHFUL = "faithful"

@@ -39,9 +39,14 @@ from scipy import ndimage
 
 from replication.errors import check
 from replication.motion import irc, single, wave_data
-from replication.motion.derivatives import (PixelDerivatives, default_border,
-                                            gradient_threshold, pair_derivatives, smooth,
-                                            spatial_gradient)
+from replication.motion.derivatives import (
+    PixelDerivatives,
+    default_border,
+    gradient_threshold,
+    pair_derivatives,
+    smooth,
+    spatial_gradient,
+)
 from replication.motion.io import read_manifest_sequences, read_sequence
 from replication.motion.synth import make_sequence
 from replication.progress import bar, progress

@@ -13,8 +13,12 @@ from pathlib import Path
 import numpy as np
 
 from replication.errors import check
-from replication.motion.io import (read_manifest_sequences, read_sequence,
-                                   write_sequence_folder, write_sequence_npz)
+from replication.motion.io import (
+    read_manifest_sequences,
+    read_sequence,
+    write_sequence_folder,
+    write_sequence_npz,
+)
 from replication.motion.multi_synth import MAX_OBJECTS, check_object, make_multi_sequence
 from replication.progress import bar, progress
 from replication.provenance import file_sha256

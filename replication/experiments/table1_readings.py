@@ -17,11 +17,17 @@ from __future__ import annotations
 import numpy as np
 
 from replication.cloth.identify import problem
-from replication.experiments.identify_common import (
-    Case, check_common, load_cases, outcome, paper_ea_run, run_rng)
 from replication.cloth.model import params_from_vectors
 from replication.cloth.numerics_variants import Numerics, regenerate, variant_cost
 from replication.errors import check
+from replication.experiments.identify_common import (
+    Case,
+    check_common,
+    load_cases,
+    outcome,
+    paper_ea_run,
+    run_rng,
+)
 from replication.progress import bar, progress
 from replication.provenance import file_sha256
 

@@ -18,12 +18,17 @@ from pathlib import Path
 
 import numpy as np
 
-from replication.experiments import table1_readings
 from replication.errors import check
+from replication.experiments import table1_readings
 from replication.figures import table1_sensitivity as figure
 from replication.provenance import (
-    NOT_RESULT_KEYS, PROJECT_ROOT, code_hash, config_hash, legacy_runner, path_sha256,
-    same_code,
+    NOT_RESULT_KEYS,
+    PROJECT_ROOT,
+    accepted_code_hashes,
+    code_hash,
+    config_hash,
+    legacy_runner,
+    path_sha256,
 )
 from replication.results import read_result
 from replication.sweep import PREFIX, overrides_of, read_gathered
@@ -166,6 +171,7 @@ def staleness(readings, experiment):
     ``runs``: the stale run folders with their reasons).
     """
     code_now = code_hash(READING_RUNNER)
+    accepted = accepted_code_hashes(READING_RUNNER)
     counts = {"code": 0, "config": 0, "inputs": 0, "no_provenance": 0}
     stale, inputs_now = [], {}
     for reading in readings:
@@ -173,7 +179,7 @@ def staleness(readings, experiment):
         if reading["code_sha256"] is None:
             reasons.append("no_provenance")
         else:
-            if not same_code(reading["code_sha256"], READING_RUNNER):
+            if reading["code_sha256"] not in accepted:
                 reasons.append("code")
             try:
                 composed = compose_reading(experiment, reading["overrides"])

@@ -21,8 +21,12 @@ import numpy as np
 from scipy import ndimage
 
 from replication.interrupts import deferred
-from replication.motion.derivatives import (default_border, gradient_threshold, smooth,
-                                            spatial_gradient)
+from replication.motion.derivatives import (
+    default_border,
+    gradient_threshold,
+    smooth,
+    spatial_gradient,
+)
 
 
 @dataclass(frozen=True)

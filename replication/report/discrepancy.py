@@ -4,8 +4,12 @@ no fitting, only counting)."""
 from __future__ import annotations
 
 from replication.experiments.discrepancy_outside import (
-    SWEEP_CSV, outside_study, rows_from_gathered, summarise)
-from replication.provenance import same_code
+    SWEEP_CSV,
+    outside_study,
+    rows_from_gathered,
+    summarise,
+)
+from replication.provenance import accepted_code_hashes
 from replication.report.build import Section, SummaryRow, fmt
 from replication.testdata import cloth_outside as og
 
@@ -105,8 +109,8 @@ def outside_section(result):
     pooled = summarise(pooled_rows, limit) if pooled_rows else None
     if pooled:
         seeds = ", ".join(str(r["seed"]) for r in runs)
-        runner = f"{outside_study.__module__}:{outside_study.__name__}"
-        stale = [r for r in runs if not same_code(r["code_sha256"], runner)]
+        accepted = accepted_code_hashes(f"{outside_study.__module__}:{outside_study.__name__}")
+        stale = [r for r in runs if r["code_sha256"] not in accepted]
         lines += [
             "", f"**Documented sweep** (seeds {seeds}: {pooled['n_datasets']} more datasets "
             "drawn the same way, none of them seen while the workflow was tuned (on the set "

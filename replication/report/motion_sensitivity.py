@@ -8,8 +8,8 @@ those rows to these sections, so that each row names the reason measured here).
 
 from __future__ import annotations
 
-from replication.report.build import Section, SummaryRow, anchor, fmt
 from replication.experiments.sensitivity import verdict
+from replication.report.build import Section, SummaryRow, anchor, fmt
 
 
 def _value(value):

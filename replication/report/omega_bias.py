@@ -8,10 +8,9 @@ that the row names the reason measured here.
 
 from __future__ import annotations
 
-
 from replication.experiments.omega_bias import CONTROLLED, NOISY, READINGS, VARIANTS, find
-from replication.report.motion import PAPER_OMEGA
 from replication.report.build import Section, SummaryRow, anchor, fmt
+from replication.report.motion import PAPER_OMEGA
 
 
 def _pct(value):

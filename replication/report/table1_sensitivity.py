@@ -10,9 +10,9 @@ here and link to this section.
 
 from __future__ import annotations
 
-from replication.report.identify import PAPER_TABLE1
 from replication.experiments.table1_readings import TABLE1_RTOL
 from replication.report.build import Section, SummaryRow, anchor, fmt
+from replication.report.identify import PAPER_TABLE1
 
 
 def _pct(value):

@@ -3,9 +3,14 @@
 import numpy as np
 import pytest
 
-from replication.cloth.identify import problem
 from replication.cloth.identify import (
-    EASettings, PaperEA, identify, mutate, reflect, uniform_crossover,
+    EASettings,
+    PaperEA,
+    identify,
+    mutate,
+    problem,
+    reflect,
+    uniform_crossover,
 )
 from replication.cloth.io import read_trajectory
 from replication.errors import InputError

@@ -11,17 +11,21 @@ import numpy as np
 import pytest
 
 from replication.cli import experiment_defaults, run_experiment
-from replication.cloth.identify import problem
 from replication.cloth.costs import make_cost
+from replication.cloth.identify import problem
 from replication.cloth.io import read_trajectory
 from replication.cloth.model import params_from_vectors, simulate
 from replication.cloth.numerics_variants import (
-    Numerics, VariantCost, regenerate, variant_cost, variant_rollout,
+    Numerics,
+    VariantCost,
+    regenerate,
+    variant_cost,
+    variant_rollout,
 )
-from replication.experiments.table1_sensitivity import compose_reading, sensitivity_study
-from replication.report.table1_sensitivity import sensitivity_section
 from replication.errors import InputError
+from replication.experiments.table1_sensitivity import compose_reading, sensitivity_study
 from replication.provenance import PROJECT_ROOT
+from replication.report.table1_sensitivity import sensitivity_section
 from replication.sweep import main as gather_main
 
 REFERENCE = PROJECT_ROOT / "synthetic_data" / "cloth" / "reference_tau0.1.npz"

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from replication.cloth import regression
-from replication.cloth.identify import structured as identify_structured
 from replication.cloth.identify import identify
+from replication.cloth.identify import structured as identify_structured
 from replication.cloth.io import read_trajectory
 from replication.discrepancy import workflow
 from replication.errors import InputError

@@ -11,9 +11,9 @@ import pytest
 
 from replication.cloth.io import write_trajectory
 from replication.discrepancy import generate as gen
-from replication.experiments.discrepancy import discrepancy
 from replication.discrepancy.workflow import analyse
 from replication.errors import InputError
+from replication.experiments.discrepancy import discrepancy
 
 ROOT = Path(__file__).resolve().parents[2]
 N_FRAMES = 100

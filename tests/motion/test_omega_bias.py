@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from replication.errors import InputError
-from replication.motion import wave_data
 from replication.experiments import omega_bias
-from replication.report import omega_bias as omega_bias_report
+from replication.motion import wave_data
 from replication.motion.derivatives import sequence_derivatives
+from replication.report import omega_bias as omega_bias_report
 
 SIDE, CENTRE, SIGMA = 48, (22.0, 26.0), 1.5
 GRID = {"low": -0.2, "high": 0.4, "step": 0.01}

@@ -144,8 +144,8 @@ def test_generator_turns_the_objects_about_the_truth():
 
 
 def test_segmentation_with_the_pyramid_on_512():
-    from replication.motion.segment import pipeline as segmentation
     from replication.experiments.segment import score_objects
+    from replication.motion.segment import pipeline as segmentation
 
     frames, truth, labels = scale_data.render(512, seed=0, scene=dict(
         scale_data.MULTI_SCENE, n_frames=2))

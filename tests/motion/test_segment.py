@@ -6,12 +6,10 @@ import numpy as np
 import pytest
 
 from replication.errors import InputError
-from replication.motion.segment import assignment
-from replication.motion.segment import disc_ea
-from replication.motion.segment import pipeline as segmentation
-from replication.motion.segment import snakes
-from replication.motion.multi_synth import make_multi_sequence
 from replication.experiments.segment import score_objects
+from replication.motion.multi_synth import make_multi_sequence
+from replication.motion.segment import assignment, disc_ea, snakes
+from replication.motion.segment import pipeline as segmentation
 from tests.test_cli import assert_regenerated_identically, run_cli
 
 TWO_OBJECTS = {

@@ -18,14 +18,19 @@ from pathlib import Path
 
 import numpy as np
 
-from replication.experiments.bench.cloth import best_time
 from replication.cloth.identify import identify
 from replication.cloth.io import trajectory_from_rollout
 from replication.cloth.mesh import FAMILY_OF_TYPE
 from replication.cloth.model import (
-    initial_state, make_scene, params_from_vectors, reference_vector, simulate, step,
+    initial_state,
+    make_scene,
+    params_from_vectors,
+    reference_vector,
+    simulate,
+    step,
 )
 from replication.errors import check
+from replication.experiments.bench.cloth import best_time
 from replication.figures import growth as figure
 from replication.growth import exponent
 from replication.progress import progress

@@ -163,8 +163,8 @@ def multi_benchmark(multi):
     The frames are :data:`replication.motion.scale_data.MULTI_SCENE` (three discs turning
     about their own centres); each run is scored like ``segment_multi``.
     """
-    from replication.motion.segment import pipeline as segmentation
     from replication.experiments.segment import score_objects
+    from replication.motion.segment import pipeline as segmentation
 
     settings = segmentation.settings_from(multi.get("method"))
     rows = []

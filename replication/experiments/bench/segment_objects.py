@@ -17,11 +17,11 @@ from pathlib import Path
 import numpy as np
 
 from replication.errors import check
+from replication.experiments.segment import score_objects
 from replication.figures import growth as figure
 from replication.growth import exponent
-from replication.motion.segment import pipeline as segmentation
 from replication.motion.multi_synth import MAX_OBJECTS, make_multi_sequence
-from replication.experiments.segment import score_objects
+from replication.motion.segment import pipeline as segmentation
 from replication.progress import progress
 
 # rotation speeds (rad/frame), object k takes the k-th; signs alternate

@@ -15,8 +15,8 @@ import math
 import numpy as np
 from scipy import ndimage
 
-from replication.motion.segment import disc_ea
 from replication.motion.baselines import rigid_fit
+from replication.motion.segment import disc_ea
 
 NICHEGA_DEFAULTS = {"norm_niche_size": 0.05}
 FLOW_DEFAULTS = {"motion_min": 0.25, "tolerance": 0.3, "samples": 300, "min_inliers": 300,

@@ -39,8 +39,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from replication.motion.derivatives import (default_border, gradient_threshold,
-                                            pair_derivatives)
+from replication.motion.derivatives import default_border, gradient_threshold, pair_derivatives
 
 DEFAULTS = {
     "pop_size": 150,          # paper: 100 to 150 individuals

@@ -32,10 +32,8 @@ import numpy as np
 
 from replication.errors import InputError
 from replication.motion import irc, pyramid
-from replication.motion.segment import assignment
-from replication.motion.segment import disc_ea
-from replication.motion.segment import snakes
 from replication.motion.derivatives import PixelDerivatives
+from replication.motion.segment import assignment, disc_ea, snakes
 
 SNAKE_DEFAULTS = {"tolerance": 0.3, "ambiguous": 0.15, "empty_cost": 0.2,
                   "ambiguous_cost": 0.0, "n_sectors": 64,

@@ -13,6 +13,8 @@ from scipy import ndimage
 
 from replication.motion.derivatives import sequence_derivatives
 from replication.motion.irc import tukey_weights
+from replication.optim.objective import Objective
+from replication.optim.pymoo_adapters import run_pymoo
 
 
 def _centre_from_affine(a, b, tx, ty):
@@ -157,7 +159,6 @@ def irc_cost(pixels, *, tau=2.0):
     """
     x, y, gx, gy, gt = pixels.x, pixels.y, pixels.gx, pixels.gy, pixels.gt
     norm = np.hypot(gx, gy)
-    state = {"evaluations": 0}
 
     def evaluate(X):
         X = np.atleast_2d(X)
@@ -165,10 +166,8 @@ def irc_cost(pixels, *, tau=2.0):
         safe = np.where(omega == 0, 1.0, omega)
         residual = -gx * (y - eta) + gy * (x - xi) + gt / safe
         cost = np.minimum((residual / norm) ** 2, tau * tau).mean(axis=1)
-        state["evaluations"] += X.shape[0]
         return np.where(omega[:, 0] == 0, tau * tau, cost)
 
-    evaluate.state = state
     return evaluate
 
 
@@ -177,15 +176,19 @@ def de_rotation(frames, *, seed, sigma=1.5, relative_threshold=0.15, tau=2.0,
     """pymoo differential evolution on :func:`irc_cost` over ``(xi, eta, omega)``.
 
     The search box is the image for ``(xi, eta)`` and the paper's sweep interval for
-    ``omega``. pymoo draws from its own generator seeded by ``seed``, so a run is
-    reproducible. (pymoo's CMA-ES wraps the ``cma`` package, whose runs differed in the
-    last digits and in the evaluation count between identical calls, hence DE.)
+    ``omega``. It scores through the suite's one objective contract
+    (:class:`~replication.optim.objective.Objective` and
+    :func:`~replication.optim.pymoo_adapters.run_pymoo`, like the cloth baselines): exactly
+    ``max_evals`` evaluations, counted one vector at a time, and the best vector seen.
+    Seeded by ``seed``, so a run is reproducible. (pymoo's CMA-ES wraps the ``cma``
+    package, whose runs differed in the last digits and in the evaluation count between
+    identical calls, hence DE.)
 
     Parameters
     ----------
     seed : int
     max_evals : int
-        Evaluation budget (pymoo may overshoot by part of a generation).
+        Evaluation budget.
     max_pixels : int
         Pixels scored per evaluation (an evenly strided subset, for speed).
 
@@ -194,28 +197,16 @@ def de_rotation(frames, *, seed, sigma=1.5, relative_threshold=0.15, tau=2.0,
     dict
         ``xi, eta, omega, cost, evaluations``.
     """
-    from pymoo.algorithms.soo.nonconvex.de import DE
-    from pymoo.core.problem import Problem
-    from pymoo.optimize import minimize
-
     pixels = sequence_derivatives(frames, sigma=sigma, relative_threshold=relative_threshold)
     stride = max(1, len(pixels) // max_pixels)
     subset = type(pixels)(*(getattr(pixels, f)[::stride]
                             for f in ("x", "y", "gx", "gy", "gt", "pair")))
-    evaluate = irc_cost(subset, tau=tau)
     height, width = frames.shape[1:]
-    lower = np.array([0.0, 0.0, omega_bounds[0]])
-    upper = np.array([width - 1.0, height - 1.0, omega_bounds[1]])
-
-    class _IRCProblem(Problem):
-        def __init__(self):
-            super().__init__(n_var=3, n_obj=1, xl=lower, xu=upper)
-
-        def _evaluate(self, X, out, *args, **kwargs):
-            out["F"] = evaluate(X)
-
-    result = minimize(_IRCProblem(), DE(pop_size=pop_size, variant="DE/best/1/bin", CR=0.7),
-                      ("n_eval", max_evals), seed=int(seed), verbose=False)
-    xi, eta, omega = (float(v) for v in np.atleast_2d(result.X)[0])
-    return {"xi": xi, "eta": eta, "omega": omega, "cost": float(np.atleast_1d(result.F)[0]),
-            "evaluations": evaluate.state["evaluations"]}
+    objective = Objective(irc_cost(subset, tau=tau), [0.0, 0.0, omega_bounds[0]],
+                          [width - 1.0, height - 1.0, omega_bounds[1]], budget=int(max_evals),
+                          names=("xi", "eta", "omega"))
+    run_pymoo(objective, "de", seed=int(seed),
+              options={"pop_size": pop_size, "variant": "DE/best/1/bin", "CR": 0.7})
+    xi, eta, omega = (float(v) for v in objective.best_point)
+    return {"xi": xi, "eta": eta, "omega": omega, "cost": objective.best_value,
+            "evaluations": objective.n_evals}

@@ -102,6 +102,7 @@ def test_de_same_seed_same_result(small_sequence):
     b = baselines.de_rotation(small_sequence[0], seed=4, max_evals=300)
     c = baselines.de_rotation(small_sequence[0], seed=5, max_evals=300)
     assert a == b and a != c
+    assert a["evaluations"] == 300   # counted by the Objective: the budget, not overshot
 
 
 def test_line_walk_matches_a_plain_loop():

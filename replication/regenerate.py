@@ -434,6 +434,10 @@ def _main(argv=None):
                                 log_dir=results / ".logs", echo=not args.quiet,
                                 child_progress="none" if args.progress == "none" else "plain",
                                 recheck=stale - by_themselves, still_stale=still_stale)
+    if todo:
+        # the keys again: an experiment's inputs may be the outputs of one that ran just now
+        # (table_result, single_result), and a key from before would make it stale next time
+        provenance, keys = experiment_keys(entries, configs)
     failures = []
     for name in todo:  # report order
         code, wall, cpu_seconds = outcome[name]

@@ -79,6 +79,7 @@ def test_timing_rule():
     assert [k for k in numbers if is_timing(k)] == []
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", available_experiments())
 def test_same_config_and_seed_give_same_numbers(name, tmp_path):
     if name in NOT_REPEATED:

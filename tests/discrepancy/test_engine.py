@@ -21,6 +21,7 @@ def test_both_workflows_call_the_same_engine():
     assert workflow.regression.fit is regression.fit
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("tau", [0.1, 0.5])
 def test_both_recover_K_and_tau_within_1_percent(tau):
     trajectory = read_trajectory(f"synthetic_data/cloth/reference_tau{tau}.npz")

@@ -185,6 +185,7 @@ def test_generator_is_deterministic_and_labels_follow_the_objects(two_objects):
     assert area == pytest.approx(np.pi * 24 ** 2, rel=0.05)
 
 
+@pytest.mark.slow
 def test_committed_multi_object_data_is_regenerated_identically(tmp_path):
     assert_regenerated_identically("motion_multi_data", "synthetic_data/motion_multi",
                                    tmp_path)

@@ -46,5 +46,6 @@ def test_photo_texture_refuses_unknown_name():
         photo_texture("nosuch", (8, 8))
 
 
+@pytest.mark.slow
 def test_committed_sequences_are_regenerated_identically(tmp_path):
     assert_regenerated_identically("motion_data", "synthetic_data/motion", tmp_path)

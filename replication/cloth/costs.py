@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from replication.cloth import kernels
-from replication.cloth.mesh import observed_lengths
+from replication.cloth.mesh import type_lengths
 from replication.cloth.model import ClothParams
 from replication.errors import InputError
 
@@ -22,7 +22,7 @@ FULL_WINDOW = 50
 def structural_length(trajectory):
     """``h`` for normalising costs: mean structural spring length in the first frame
     (exactly the contract's ``h`` for data that starts from the flat sheet)."""
-    lengths = observed_lengths(trajectory.positions[0], trajectory.n)
+    lengths = type_lengths(trajectory.positions[0], trajectory.n)
     return float(lengths[:2].mean())
 
 

@@ -11,7 +11,6 @@ TYPE_NAMES = (
 )
 # type -> family, for the 5-parameter model: 0 structural, 1 shear, 2 flexion
 FAMILY_OF_TYPE = np.array([0, 0, 1, 1, 2, 2])
-FAMILY_NAMES = ("structural", "shear", "flexion")
 
 DEFAULT_N = 17
 DEFAULT_SIDE = 1.5
@@ -79,19 +78,27 @@ def reference_rest_lengths(h):
     return np.array([h, h * np.sqrt(2.0), 2.0 * h])
 
 
-def observed_lengths(positions, n):
-    """Mean spring length per type in one frame.
+def type_lengths(positions, n, *, statistic="mean"):
+    """One number per spring type from recorded positions: the ``statistic`` (``"mean"``
+    or ``"median"``) of the lengths of that type's springs over every frame given.
+
+    The one place spring lengths per type are measured: cost normalisation (first frame),
+    the search bounds (mean over all frames) and the regression's starting lengths (median
+    over a subsample of frames).
 
     Parameters
     ----------
-    positions : (n*n, 3) or (n, n, 3) ndarray
+    positions : (n*n, 3), (n, n, 3), (F, n*n, 3) or (F, n, n, 3) ndarray
     n : int
+        Particles per side.
+    statistic : "mean" or "median"
 
     Returns
     -------
-    (6,) ndarray of mean lengths per spring type.
+    (6,) ndarray
     """
-    x = np.asarray(positions).reshape(n * n, 3)
+    x = np.asarray(positions, dtype=float).reshape(-1, n * n, 3)
     a, b, kind = springs(n)
-    length = np.linalg.norm(x[b] - x[a], axis=1)
-    return np.array([length[kind == t].mean() for t in range(N_TYPES)])
+    length = np.linalg.norm(x[:, b] - x[:, a], axis=2)
+    reduce = {"mean": np.mean, "median": np.median}[statistic]
+    return np.array([reduce(length[:, kind == t]) for t in range(N_TYPES)])

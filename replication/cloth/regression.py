@@ -45,9 +45,10 @@ from scipy.signal import savgol_filter
 
 from replication.cloth import geometry
 from replication.cloth.costs import ClothCost, structural_length
-from replication.cloth.mesh import FAMILY_OF_TYPE, N_TYPES
+from replication.cloth.mesh import FAMILY_OF_TYPE, N_TYPES, type_lengths
 from replication.cloth.model import ClothParams, step
 from replication.errors import InputError
+from replication.optim.scan import zoom
 
 LAG_BEFORE = 2
 LAG_AFTER = 3
@@ -377,8 +378,8 @@ def search_tau(data, base, terms, frames, *, max_frames=50, levels=9):
     """The critical elongation rate minimising the one-step cost over ``frames``.
 
     A log grid around the current value (or a wide one when it is :data:`BIG_TAU`), then
-    ``levels`` zooms of 21 points around the best value, each grid one population of the
-    compiled kernel; exact ties go to the smallest ``tau``.
+    ``levels`` zooms of 21 points around the best value (:func:`replication.optim.scan.zoom`),
+    each grid one population of the compiled kernel; exact ties go to the smallest ``tau``.
     """
     frames = np.asarray(frames)
     if len(frames) > max_frames:
@@ -396,19 +397,7 @@ def search_tau(data, base, terms, frames, *, max_frames=50, levels=9):
                              np.repeat(np.asarray(taus)[:, None], N_TYPES, 1))
         return cost(params, extra)
 
-    values = evaluate(grid)
-    pick = int(np.argmin(values))
-    best_tau, best_value = float(grid[pick]), float(values[pick])
-    for _ in range(levels):
-        lo, hi = grid[max(pick - 1, 0)], grid[min(pick + 1, len(grid) - 1)]
-        if hi - lo <= 1e-10 * hi:
-            break
-        grid = np.linspace(lo, hi, 21)
-        values = evaluate(grid)
-        pick = int(np.argmin(values))
-        if values[pick] < best_value:
-            best_tau, best_value = float(grid[pick]), float(values[pick])
-    return best_tau
+    return zoom(evaluate, grid, levels=levels, points=21)[0]
 
 
 def position_noise(data):
@@ -446,10 +435,9 @@ def tau_data(data, *, window=11):
 
 
 def typical_lengths(data):
-    """Median recorded length of each spring type over all frames, (6,)."""
+    """Median recorded length of each spring type over about 50 frames, (6,)."""
     x = data.x[::max(1, data.n_frames // 50)]
-    return np.array([np.median(np.linalg.norm(x[:, data.ops.b[idx]] - x[:, data.ops.a[idx]],
-                                              axis=2)) for idx in data.ops.type_slices])
+    return type_lengths(x, data.ops.n, statistic="median")
 
 
 def _trimmed_lstsq(A, y, *, rounds=6, factor=10.0):

@@ -14,14 +14,15 @@ STARTS = ("recorded", "centred")
 
 def split_frames(n_frames, *, block=25, every=4):
     """Training frames and held-out blocks: block ``k`` is held out when ``k % every ==
-    every - 1``; training frames keep 3 frames away from held-out ones (instruments).
+    every - 1`` and whole (frames ``0..n_frames-2``, each with a next frame); training
+    frames keep 3 frames away from held-out ones (instruments).
 
     Returns
     -------
     train : (F,) int ndarray; held_out : list of (B,) int ndarrays (frames of each block)
     """
-    frames = np.arange(n_frames - 1)
-    held = [frames[k * block:(k + 1) * block] for k in range(n_frames // block)
+    frames = np.arange(n_frames - 1)   # each with a next frame
+    held = [frames[k * block:(k + 1) * block] for k in range(frames.size // block)
             if k % every == every - 1]
     near = np.zeros(n_frames, dtype=bool)
     for chunk in held:

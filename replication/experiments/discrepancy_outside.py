@@ -29,6 +29,7 @@ from replication.discrepancy.workflow import analyse
 from replication.errors import InputError, check
 from replication.progress import progress
 from replication.results import write_json_atomic
+from replication.sweep import cell_value
 from replication.testdata import cloth_outside as og
 
 
@@ -196,7 +197,6 @@ def rows_from_gathered(path=None):
     provenance), or ``([], [])`` when the file does not exist.
     """
     import csv
-    import math
 
     path = _ROOT / SWEEP_CSV if path is None else Path(path)
     if not path.is_file():
@@ -204,25 +204,14 @@ def rows_from_gathered(path=None):
     with open(path, newline="") as handle:
         lines = list(csv.DictReader(handle))
 
-    def value(text):
-        if text in ("", None):
-            return None
-        if text in ("True", "False"):
-            return text == "True"
-        try:
-            number = float(text)
-        except ValueError:
-            return text
-        return int(number) if number.is_integer() and not math.isinf(number) else number
-
     rows, runs = [], []
     for line in lines:
-        runs.append({"run": line.get("run"), "seed": value(line.get("seed")),
+        runs.append({"run": line.get("run"), "seed": cell_value(line.get("seed")),
                      "code_sha256": line.get("provenance.code_sha256") or None})
         index = 0
         while f"datasets.{index}.exact" in line and line[f"datasets.{index}.exact"] != "":
             head = f"datasets.{index}."
-            row = {key: value(line.get(head + key)) for key in _ROW_FIELDS}
+            row = {key: cell_value(line.get(head + key)) for key in _ROW_FIELDS}
             for key in _ROW_LISTS:
                 items, k = [], 0
                 while line.get(f"{head}{key}.{k}") not in (None, ""):

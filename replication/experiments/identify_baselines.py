@@ -14,31 +14,31 @@ import time
 import numba
 import numpy as np
 
-from replication.cloth.identify import EASettings, PaperEA, problem
-from replication.cloth.identify.structured import structured_identify
-from replication.errors import check
+from replication.cloth.identify import problem
+from replication.cloth.identify.api import check_solver, solve
+from replication.errors import InputError, check
 from replication.experiments.identify_common import check_common, load_cases, outcome, run_rng
 from replication.figures import cloth_baselines_ecdf
-from replication.optim.pymoo_adapters import ALGORITHMS, run_pymoo
-from replication.optim.scipy_adapters import run_least_squares
 from replication.progress import bar, progress
 from replication.workers import process_pool
-
-KINDS = ("paper_ea", "structured", "pymoo", "least_squares")
-
 
 def _check_optimisers(optimisers):
     check(len(optimisers) > 0, "optimisers: expected at least one entry")
     for entry in optimisers:
-        kind = entry.get("kind")
-        check(kind in KINDS, f"optimisers: {entry.get('name')}: kind={kind!r}; expected one "
-                             f"of {', '.join(KINDS)}")
-        if kind == "pymoo":
-            check(entry.get("algorithm") in ALGORITHMS,
-                  f"optimisers: {entry['name']}: algorithm={entry.get('algorithm')!r}; "
-                  f"expected one of {', '.join(ALGORITHMS)}")
-        if kind == "paper_ea":
-            EASettings.from_config(entry["ea"])
+        try:
+            check_solver(entry.get("kind"), _settings(entry, rest_spread=0.0))
+        except InputError as error:
+            raise InputError(f"optimisers: {entry.get('name')}: {error}") from None
+
+
+def _settings(entry, *, rest_spread):
+    """The solver settings of one ``optimisers`` entry (see :func:`solve`)."""
+    kind = entry.get("kind")
+    if kind == "paper_ea":
+        return {"ea": entry["ea"], "rest_spread": rest_spread}
+    if kind == "structured":
+        return entry["settings"]
+    return {key: entry.get(key) for key in ("algorithm", "options")}
 
 
 def run_optimiser(entry, case, *, budget, rng, seed, rest_spread):
@@ -62,23 +62,11 @@ def run_optimiser(entry, case, *, budget, rng, seed, rest_spread):
     kind = entry["kind"]
     objective = problem.cloth_objective(case.cost, case.space, budget=budget,
                                         with_residuals=kind == "least_squares")
-    info = {}
-    if kind == "paper_ea":
-        settings = EASettings.from_config(entry["ea"])
-        initial = problem.random_population(case.space, settings.pop_size, rng,
-                                            rest_spread=rest_spread)
-        PaperEA(objective, settings, rng, initial).run()
-    elif kind == "structured":
-        _, info = structured_identify(case.trajectory, objective, case.space, rng=rng,
-                                      settings=entry["settings"])
-        info = {"regression": info["regression"]}
-    elif kind == "pymoo":
-        info = run_pymoo(objective, entry["algorithm"], seed=seed,
-                         options=entry.get("options"))
-    else:
-        info = run_least_squares(objective, rng=rng, options=entry.get("options"))
-        info = {"starts": info["starts"]}
-    return objective, info
+    info = solve(kind, objective, case.trajectory, case.space, rng=rng, seed=seed,
+                 settings=_settings(entry, rest_spread=rest_spread))
+    kept = {"paper_ea": (), "structured": ("regression",), "least_squares": ("starts",),
+            "pymoo": tuple(info)}[kind]
+    return objective, {key: info[key] for key in kept}
 
 
 def _checkpoints(budget):

@@ -154,13 +154,3 @@ class Objective:
             "trace": {"evals": list(self.trace.evals), "values": list(self.trace.values)},
         }
 
-
-def fixed_budget_values(trace, budgets):
-    """Best-so-far values of ``trace`` at each evaluation count in ``budgets``.
-
-    Parameters
-    ----------
-    trace : Trace
-    budgets : iterable of int
-    """
-    return [trace.best_at(b) for b in budgets]

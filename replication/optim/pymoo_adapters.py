@@ -27,7 +27,7 @@ WORST_COST = 1e300  # what pymoo sees instead of an infinite cost
 _NEEDS_X0 = {"cmaes", "nelder_mead"}
 
 
-class _BatchedProblem(Problem):
+class BatchedProblem(Problem):
     """A pymoo problem whose vectorised evaluation is ``objective.evaluate``."""
 
     def __init__(self, objective):
@@ -128,7 +128,7 @@ def run_pymoo(objective, name, *, seed, options=None, max_restarts=10_000, x_tol
         algorithm = make_algorithm(name, x0=x0, options=options)
         counter = _GenerationCount()
         try:
-            minimize(_BatchedProblem(objective), algorithm,
+            minimize(BatchedProblem(objective), algorithm,
                      _termination(name, objective.remaining, x_tol), seed=run_seed,
                      callback=counter, verbose=False)
         except BudgetExhausted:

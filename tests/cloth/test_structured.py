@@ -54,9 +54,11 @@ def test_tau_scan_finds_a_needle_that_a_grid_alone_misses():
     grid = np.geomspace(0.01, 1.0, 40)
     grid_best = grid[np.argmin(fun(np.c_[np.zeros(40), grid]))]
     assert abs(np.log(grid_best / needle)) > 0.005          # the grid alone is off the needle
-    assert abs(objective.best_point[1] / needle - 1) < 1e-4   # xatol is 1e-6 of the bracket
+    # 30 evaluations: 4 zooms of 7 values, each 3x narrower; the last spacing is about
+    # 1/6 of (24% / 81), so the answer is within 3e-4 (relative) of the needle
+    assert abs(objective.best_point[1] / needle - 1) < 3e-4
     assert objective.best_point[0] == 0.5                      # the other parameters stay
-    assert objective.n_evals <= 40 + 30 + 1   # the grid, the refinement, its start point
+    assert objective.n_evals <= 40 + 30   # the grid and the zooms
 
 
 def test_structured_identify_counts_every_evaluation_and_recovers_the_truth(case):

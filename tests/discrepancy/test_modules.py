@@ -189,11 +189,10 @@ def test_structure_flags_white_residuals_which_a_right_model_cannot_produce():
 
 @pytest.mark.parametrize("n_frames, block, every", [
     (501, 25, 4), (510, 25, 4), (203, 10, 3), (101, 5, 2),
-    # known: when block divides n_frames the last held block loses its last frame (blocks
-    # are counted over n_frames, frames run to n_frames - 2), and rollout_error takes the
-    # shortest block for all; the fix changes the discrepancy code the documented sweeps
-    # were made with, so it waits for their re-run. strict: the fix makes this fail.
-    pytest.param(500, 25, 4, marks=pytest.mark.xfail(strict=True, reason="short last block")),
+    # block divides n_frames: the last block would end on the last frame, which has no
+    # next one; it used to be held out one frame short (and rollout_error takes the
+    # shortest block for all)
+    (500, 25, 4), (100, 25, 2),
 ])
 def test_split_frames_holds_out_blocks_and_keeps_training_three_frames_away(n_frames, block,
                                                                            every):

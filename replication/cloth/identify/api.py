@@ -1,24 +1,101 @@
 """The entry point for other code: identify the cloth parameters of any trajectory.
 
-The paper's EA (:mod:`.ea`) or the structured identifier (:mod:`.structured`) on the
-problem every identifier shares (:mod:`.problem`).
+The paper's EA (:mod:`.ea`), the structured identifier (:mod:`.structured`) or a pymoo or
+scipy baseline on the problem every identifier shares (:mod:`.problem`), through one
+solver table (:data:`SOLVERS`) that the baselines study uses too.
 """
 
 from __future__ import annotations
 
 import numpy as np
+from omegaconf import OmegaConf
 
 from replication.cloth.identify import problem
 from replication.cloth.identify.ea import EASettings, PaperEA
 from replication.cloth.identify.structured import structured_identify
-from replication.errors import InputError
+from replication.errors import InputError, check
+from replication.optim.pymoo_adapters import ALGORITHMS, run_pymoo
+from replication.optim.scipy_adapters import run_least_squares
+from replication.provenance import PROJECT_ROOT
 
 DEFAULT_BOUNDS = {"rest": [0.8, 1.2], "K": [0.1, 10.0], "tau": [0.01, 1.0]}
-DEFAULT_STRUCTURED = {
-    "regression": {"first": 1, "stride": 5},
-    "tau_scan": {"n_grid": 100, "refine_evals": 40},
-    "refine": {"box": 0.02, "ea": {"pop_size": 20, "generations": 10}},
-}
+STRUCTURED_CONFIG = "configs/structured/default.yaml"   # the structured identifier's defaults
+
+
+def default_structured():
+    """The structured identifier's settings from :data:`STRUCTURED_CONFIG` (the config
+    group every experiment takes them from; the code keeps no copy)."""
+    return OmegaConf.to_container(OmegaConf.load(PROJECT_ROOT / STRUCTURED_CONFIG))
+
+
+def _paper_ea(objective, trajectory, space, *, rng, seed, settings):
+    ea_settings = EASettings.from_config(settings["ea"])
+    initial = problem.random_population(space, ea_settings.pop_size, rng,
+                                        rest_spread=settings["rest_spread"])
+    ea = PaperEA(objective, ea_settings, rng, initial).run()
+    return {"population": ea.X.tolist(), "population_cost": ea.F.tolist(),
+            "history": ea.history}
+
+
+def _structured(objective, trajectory, space, *, rng, seed, settings):
+    best, info = structured_identify(trajectory, objective, space, rng=rng, settings=settings)
+    info["population"] = [best.tolist()]
+    return info
+
+
+def _pymoo(objective, trajectory, space, *, rng, seed, settings):
+    return run_pymoo(objective, settings["algorithm"], seed=seed,
+                     options=settings.get("options"))
+
+
+def _least_squares(objective, trajectory, space, *, rng, seed, settings):
+    return run_least_squares(objective, rng=rng, options=settings.get("options"))
+
+
+# the one solver table: every identifier of the suite, by kind, on a counted Objective
+SOLVERS = {"paper_ea": _paper_ea, "structured": _structured, "pymoo": _pymoo,
+           "least_squares": _least_squares}
+
+
+def check_solver(kind, settings):
+    """Refuse an unknown ``kind`` or a pymoo algorithm or paper-EA settings that cannot run."""
+    check(kind in SOLVERS, f"method={kind!r}: expected one of {', '.join(SOLVERS)}")
+    if kind == "pymoo":
+        check(settings.get("algorithm") in ALGORITHMS,
+              f"algorithm={settings.get('algorithm')!r}; expected one of "
+              f"{', '.join(ALGORITHMS)}")
+    if kind == "paper_ea":
+        EASettings.from_config(settings["ea"])
+
+
+def solve(kind, objective, trajectory, space, *, rng, seed=None, settings):
+    """Run the identifier ``kind`` (a key of :data:`SOLVERS`) on ``objective``.
+
+    Every cost evaluation goes through ``objective`` (counted, budgeted, traced), so the
+    answer is ``objective.best_point``.
+
+    Parameters
+    ----------
+    kind : "paper_ea", "structured", "pymoo" or "least_squares"
+    objective : Objective
+        Over ``space``; with residuals for ``least_squares``.
+    trajectory : Trajectory
+    space : SearchSpace
+    rng : np.random.Generator
+    seed : int, optional
+        pymoo's seed.
+    settings : dict
+        ``paper_ea``: ``ea`` (EASettings) and ``rest_spread``; ``structured``: see
+        :func:`~replication.cloth.identify.structured.structured_identify`; ``pymoo``:
+        ``algorithm`` and ``options``; ``least_squares``: ``options``.
+
+    Returns
+    -------
+    info : dict
+        What the identifier reports of its run.
+    """
+    check_solver(kind, settings)
+    return SOLVERS[kind](objective, trajectory, space, rng=rng, seed=seed, settings=settings)
 
 
 def identify(trajectory, *, model="5", rng=None, budget=None, method="structured",
@@ -34,45 +111,36 @@ def identify(trajectory, *, model="5", rng=None, budget=None, method="structured
         ``(rest_0..5, k_0..5, tau_0..5)``.
     rng : np.random.Generator, int or None
     budget : int or None
-        Maximum number of cost evaluations.
-    method : "structured" or "paper_ea"
+        Maximum number of cost evaluations (required by ``pymoo`` and ``least_squares``).
+    method : "structured", "paper_ea", "pymoo" or "least_squares"
     cost : dict, optional
         Cost settings (``kind``: "small", "full" or "frames", ...); default the small cost.
     bounds : dict, optional
         ``rest`` (factors on observed lengths), ``K``, ``tau``; default
         :data:`DEFAULT_BOUNDS`.
     settings : dict, optional
-        Method settings (see ``configs/experiment/cloth_identify.yaml``).
+        Method settings (see :func:`solve`); default for ``structured``
+        :func:`default_structured`, for ``paper_ea`` the paper's rates with rest spread 0.1.
 
     Returns
     -------
     best_vector : (5,) or (18,) ndarray
     cost : float
     info : dict
-        ``n_evals``, ``population`` (paper EA, best first), method details.
+        ``n_evals``, ``trace``, ``population`` (paper EA, best first), method details.
     """
+    if method not in SOLVERS:
+        raise InputError(f"method={method!r}: expected one of {', '.join(SOLVERS)}")
     rng = np.random.default_rng(rng)
+    if settings is None:
+        settings = (default_structured() if method == "structured"
+                    else {"ea": {}, "rest_spread": 0.1})
+    seed = int(rng.integers(2**31)) if method == "pymoo" else None
     cost_fn = problem.cost_from_config(trajectory, cost or {"kind": "small"})
     space = problem.search_space(trajectory, bounds or DEFAULT_BOUNDS, model=model)
-    objective = problem.cloth_objective(cost_fn, space, budget=budget)
-    if method == "structured":
-        best, info = structured_identify(trajectory, objective, space, rng=rng,
-                                         settings=settings or DEFAULT_STRUCTURED)
-        info["population"] = [best.tolist()]
-    elif method == "paper_ea":
-        settings = dict(settings or {"ea": {}, "rest_spread": 0.1})
-        ea_settings = EASettings.from_config(settings["ea"])
-        initial = problem.random_population(space, ea_settings.pop_size, rng,
-                                            rest_spread=settings["rest_spread"])
-        ea = PaperEA(objective, ea_settings, rng, initial).run()
-        best = ea.X[0]
-        info = {"population": ea.X.tolist(), "population_cost": ea.F.tolist(),
-                "history": ea.history}
-    else:
-        raise InputError(f"method={method!r}: expected 'structured' or 'paper_ea'")
+    objective = problem.cloth_objective(cost_fn, space, budget=budget,
+                                        with_residuals=method == "least_squares")
+    info = solve(method, objective, trajectory, space, rng=rng, seed=seed, settings=settings)
     info["n_evals"] = objective.n_evals
     info["trace"] = objective.summary()["trace"]
-    if objective.best_point is not None:
-        best = objective.best_point
-    return np.asarray(best, float), float(objective.best_value), info
-
+    return np.asarray(objective.best_point, float), float(objective.best_value), info

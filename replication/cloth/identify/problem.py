@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from replication.cloth.costs import ClothCost, make_cost
-from replication.cloth.mesh import FAMILY_OF_TYPE, N_TYPES, springs
+from replication.cloth.mesh import FAMILY_OF_TYPE, N_TYPES, type_lengths
 from replication.cloth.model import PARAM_NAMES_5, PARAM_NAMES_18, params_from_vectors, step
 from replication.errors import InputError, check
 from replication.optim.objective import Objective
@@ -46,14 +46,6 @@ class SearchSpace:
         return np.isfinite(self.observed_rest)
 
 
-def mean_observed_lengths(trajectory):
-    """Mean length of each spring type over all frames of ``trajectory``, shape (6,)."""
-    a, b, kind = springs(trajectory.n)
-    x = trajectory.flat_positions()
-    lengths = np.linalg.norm(x[:, b] - x[:, a], axis=2).mean(axis=0)
-    return np.array([lengths[kind == t].mean() for t in range(N_TYPES)])
-
-
 def _check_interval(name, interval):
     check(isinstance(interval, (list, tuple)) and len(interval) == 2,
           f"bounds.{name}={interval!r}: expected [low, high]")
@@ -80,7 +72,7 @@ def search_space(trajectory, bounds, *, model="5"):
     tau_low, tau_high = _check_interval("tau", bounds.get("tau"))
     check(rest_low > 0 and k_low > 0 and tau_low > 0,
           f"bounds: rest {rest_low}, K {k_low}, tau {tau_low}: expected positive lower bounds")
-    observed = mean_observed_lengths(trajectory)
+    observed = type_lengths(trajectory.flat_positions(), trajectory.n)
     if model == "5":
         rest = np.array([observed[FAMILY_OF_TYPE == f].mean() for f in range(3)])
         n_k, names = 1, PARAM_NAMES_5

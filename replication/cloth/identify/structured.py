@@ -8,9 +8,9 @@ Three stages, each using what the model's structure gives:
    ``k l``, so rest lengths and stiffnesses come from a regression of the observed
    accelerations (robust to the constraint and to position noise), and tau from a
    one-dimensional search. No evaluations of the objective.
-2. A scan of tau on the cost with ``k`` and ``l`` fixed (batched grid, then a bounded
-   one-dimensional refinement per tau), which finds the needle-shaped minimum in tau
-   that defeats general optimisers (Figs. 9-10).
+2. A scan of tau on the cost with ``k`` and ``l`` fixed (a batched grid, then batched
+   zooms: the engine's one-dimensional search, :mod:`replication.optim.scan`), which
+   finds the needle-shaped minimum in tau that defeats general optimisers (Figs. 9-10).
 3. Local refinement: the paper's EA on a small box around the estimate.
 
 All cost evaluations go through the shared :class:`~replication.optim.objective.Objective`.
@@ -19,13 +19,15 @@ All cost evaluations go through the shared :class:`~replication.optim.objective.
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import minimize_scalar
 
 from replication.cloth import regression
 from replication.cloth.identify.ea import EASettings, PaperEA
 from replication.cloth.mesh import FAMILY_OF_TYPE, N_TYPES
 from replication.errors import check
 from replication.optim.objective import BudgetExhausted
+from replication.optim.scan import zoom
+
+ZOOM_POINTS = 7   # values per zoom of the tau scan: 3x narrower per 7 evaluations
 
 
 def regression_frames(n_frames, *, first, stride):
@@ -39,10 +41,12 @@ def regression_frames(n_frames, *, first, stride):
     return np.arange(max(first, 1), n_frames - 1, stride)
 
 
-def scan_tau(objective, base, indices, *, n_grid, refine_evals):
-    """Stage 2 for one group of tau entries set to a common value: grid over the bounds
-    (log-spaced), then a bounded scalar refinement between the grid neighbours of the
-    best point. The answer is read from the objective's best-so-far point.
+def scan_tau(objective, base, indices, *, n_grid, refine_evals, points=ZOOM_POINTS):
+    """Stage 2 for one group of tau entries set to a common value: a log grid over the
+    bounds, then zooms of ``points`` values around the best one
+    (:func:`replication.optim.scan.zoom`, the identification engine's tau search too)
+    while ``refine_evals`` evaluations last. The answer is read from the objective's
+    best-so-far point.
 
     Parameters
     ----------
@@ -54,25 +58,21 @@ def scan_tau(objective, base, indices, *, n_grid, refine_evals):
     n_grid : int
         Grid points.
     refine_evals : int
-        Evaluations of the scalar refinement.
+        Evaluations of the zooms (``refine_evals // points`` zooms).
+    points : int
+        Values per zoom (each zoom shrinks the bracket by ``(points - 1) / 2``).
     """
     indices = list(indices)
     low = objective.lower[indices].max()
     high = objective.upper[indices].min()
-    grid = np.geomspace(low, high, n_grid)
-    X = np.repeat(base[None, :], n_grid, axis=0)
-    X[:, indices] = grid[:, None]
-    best = int(np.argmin(objective.evaluate(X)))
-    lo, hi = grid[max(best - 1, 0)], grid[min(best + 1, n_grid - 1)]
 
-    def along(tau):
-        trial = base.copy()
-        trial[indices] = tau
-        return float(objective.evaluate(trial[None, :])[0])
+    def along(taus):
+        X = np.repeat(base[None, :], len(taus), axis=0)
+        X[:, indices] = np.asarray(taus)[:, None]
+        return objective.evaluate(X)
 
-    if refine_evals > 0 and hi > lo:
-        minimize_scalar(along, bounds=(lo, hi), method="bounded",
-                        options={"maxiter": refine_evals, "xatol": 1e-6 * (hi - lo)})
+    zoom(along, np.geomspace(low, high, n_grid), levels=int(refine_evals) // points,
+         points=points)
 
 
 def tau_groups(model, n_var):

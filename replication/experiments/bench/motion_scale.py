@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from replication.errors import check
+from replication.growth import exponent
 from replication.motion import scale_data, single
 from replication.progress import progress
 
@@ -24,23 +25,10 @@ METHODS = ("exact", "pyramid")
 
 
 def growth_exponent(sides, seconds):
-    """Least-squares slope of ``log(seconds)`` against ``log(pixels)``, ``pixels = side**2``.
-
-    1 means time proportional to the number of pixels, 1.5 to the cube of the side.
-    None with fewer than two sizes.
-
-    Parameters
-    ----------
-    sides : sequence of int
-        Frame sides, pixels.
-    seconds : sequence of float
-        Time at each side.
-    """
-    if len(sides) < 2:
-        return None
-    pixels = np.log(np.asarray(sides, dtype=float) ** 2)
-    slope, _ = np.polyfit(pixels, np.log(np.asarray(seconds, dtype=float)), 1)
-    return float(slope)
+    """Slope of ``log(seconds)`` against ``log(pixels)``, ``pixels = side**2``
+    (:func:`replication.growth.exponent`): 1 means time proportional to the number of
+    pixels, 1.5 to the cube of the side. None with fewer than two sizes."""
+    return exponent(np.asarray(sides, dtype=float) ** 2, seconds)
 
 
 def _check(config):

@@ -17,6 +17,8 @@ from scipy import ndimage
 
 from replication.motion.baselines import rigid_fit
 from replication.motion.segment import disc_ea
+from replication.optim.objective import Objective
+from replication.optim.pymoo_adapters import BatchedProblem
 
 NICHEGA_DEFAULTS = {"norm_niche_size": 0.05}
 FLOW_DEFAULTS = {"motion_min": 0.25, "tolerance": 0.3, "samples": 300, "min_inliers": 300,
@@ -43,35 +45,27 @@ def nichega_discs(data, ea_settings, nichega_settings, rng):
     evaluations : int
     """
     from pymoo.algorithms.soo.nonconvex.ga_niching import NicheGA
-    from pymoo.core.problem import Problem
     from pymoo.optimize import minimize
 
     settings = {**disc_ea.DEFAULTS, **ea_settings}
     options = {**NICHEGA_DEFAULTS, **(nichega_settings or {})}
     template = disc_ea.DiscEA(data, {**settings, "generations": 1}, rng=0)
-    lower, upper = template.lower, template.upper
-    count = {"evaluations": 0}
-
-    class _DiscProblem(Problem):
-        def __init__(self):
-            super().__init__(n_var=6, n_obj=1, xl=lower, xu=upper)
-
-        def _evaluate(self, X, out, *args, **kwargs):
-            X = template._repair(np.array(X, dtype=float))
-            count["evaluations"] += X.shape[0]
-            out["F"] = disc_ea.disc_cost(X, data, settings)
-
+    # scored through the suite's counted objective, like every optimiser; the count is
+    # the objective's (pymoo's own termination may overshoot by part of a generation)
+    objective = Objective(lambda X: disc_ea.disc_cost(template._repair(X), data, settings),
+                          template.lower, template.upper)
     algorithm = NicheGA(pop_size=int(settings["pop_size"]),
                         norm_niche_size=float(options["norm_niche_size"]))
     seed = int(rng.integers(2**31 - 1))
     # the paper's EA's budget: the first population, then the non-kept 80% each generation
     budget = template.n + (template.n - template.n_keep) * int(settings["generations"])
-    result = minimize(_DiscProblem(), algorithm, ("n_eval", budget), seed=seed, verbose=False)
+    result = minimize(BatchedProblem(objective), algorithm, ("n_eval", budget), seed=seed,
+                      verbose=False)
     pop = template._repair(result.pop.get("X").astype(float))
     cost = result.pop.get("F")[:, 0]
     order = np.lexsort((np.arange(cost.size), cost))
     n_keep = max(1, int(round(settings["keep"] * pop.shape[0])))
-    return pop[order[:n_keep]], count["evaluations"]
+    return pop[order[:n_keep]], objective.n_evals
 
 
 def _two_point_rotation(p, q):

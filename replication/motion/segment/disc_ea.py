@@ -40,6 +40,7 @@ import numba
 import numpy as np
 
 from replication.motion.derivatives import default_border, gradient_threshold, pair_derivatives
+from replication.optim.objective import Objective
 
 DEFAULTS = {
     "pop_size": 150,          # paper: 100 to 150 individuals
@@ -414,11 +415,19 @@ class DiscEA:
         self.lower = np.array([0.0, 0.0, s["r_min"], -m, -m, s["omega_min"]])
         self.upper = np.array([width - 1.0, height - 1.0, s["r_max"], width - 1.0 + m,
                                height - 1.0 + m, s["omega_max"]])
+        # every cost goes through the suite's counted objective (one contract for all
+        # optimisers, docs/extending.md)
+        self.objective = Objective(lambda pop: disc_cost(pop, data, self.settings),
+                                   self.lower, self.upper)
         self.population = self.random_individuals(self.n)
-        self.costs = disc_cost(self.population, data, self.settings)
+        self.costs = self.objective.evaluate(self.population)
         self.shared = self._share()
         self.generation = 0
-        self.evaluations = self.n
+
+    @property
+    def evaluations(self):
+        """Cost evaluations so far (counted by the objective)."""
+        return self.objective.n_evals
 
     def random_individuals(self, count):
         """``count`` individuals drawn uniformly between the bounds, shape ``(count, 6)``."""
@@ -459,12 +468,11 @@ class DiscEA:
             fresh = project_centres(fresh, self.data, self.rng, damping=s["damping"],
                                     cap=s["cap"])
         children = self._repair(np.concatenate([moved, turned, projected, fresh]))
-        child_costs = disc_cost(children, self.data, s)
+        child_costs = self.objective.evaluate(children)
         self.population = np.concatenate([kept, children])
         self.costs = np.concatenate([kept_costs, child_costs])
         self.shared = self._share()
         self.generation += 1
-        self.evaluations += children.shape[0]
 
     def run(self, callback=None):
         """Run ``generations`` generations; ``callback(self)`` after each one.

@@ -97,3 +97,39 @@ def test_no_folder_crowded_with_one_prefix():
         crowded.update({f"{folder.relative_to(PROJECT_ROOT)}/{prefix}_*": count
                         for prefix, count in prefixes.items() if count > 5})
     assert crowded == {}
+
+
+def _experiment_runners():
+    from hydra import compose, initialize_config_dir
+
+    from replication.cli import CONFIG_DIR, available_experiments
+
+    runners = {}
+    for name in available_experiments():
+        with initialize_config_dir(config_dir=CONFIG_DIR, version_base="1.3"):
+            runners[name] = compose(config_name="config",
+                                    overrides=[f"experiment={name}"]).runner
+    return runners
+
+
+def test_a_figure_change_makes_only_the_experiments_that_draw_it_stale():
+    """A figure module is in the code hash of an experiment only when the experiment's
+    runner draws it (its function reaches the figure's ``draw``), not because the runner
+    imports a sibling runner module that draws it. The figures that several experiments
+    draw (shared helpers, the sensitivity and growth plots, the style) are listed."""
+    from replication.provenance import CORE_MODULES, module_closure, runner_parts
+
+    shared = {"__init__.py", "style.py", "cloth_common.py", "sensitivity.py", "growth.py",
+              "discrepancy_where.py", "cloth_baselines_ecdf.py"}
+    users = {}
+    for name, runner in _experiment_runners().items():
+        _, roots = runner_parts(runner)
+        parts = runner.partition(":")[0].split(".")
+        roots += [".".join(parts[:i]) for i in range(1, len(parts))]
+        for path in module_closure([*roots, *CORE_MODULES]):
+            if path.parent.name == "figures" and path.name not in shared:
+                users.setdefault(path.name, []).append(name)
+    several = {figure: names for figure, names in users.items() if len(names) > 1}
+    assert several == {}
+    assert users["fig05_discs.py"] == ["segment_multi"]
+    assert users["fig01_flow.py"] == ["motion_single"]

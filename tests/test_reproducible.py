@@ -1,7 +1,8 @@
 """Same config and seed give the same result.json numbers, for every experiment.
 
-Each experiment config may carry ``smoke:`` (a list of Hydra overrides) that makes it
-small enough to run twice here; experiments without it are skipped with a reason.
+Each experiment may have small settings in the ``smoke`` config group
+(``configs/smoke/<experiment>.yaml``, taken with ``+smoke=<experiment>``) that make it
+small enough to run twice here; experiments without them are skipped with a reason.
 Outputs outside ``out`` are redirected into a temporary folder: the folders
 ``figure_dir``, ``figures_dir`` and ``data_dir``, and the files ``figure`` and ``manifest``
 when they name a folder (``figure: figures/x.png``, not a bare name inside ``figure_dir``).
@@ -85,13 +86,13 @@ def test_same_config_and_seed_give_same_numbers(name, tmp_path):
     if name in NOT_REPEATED:
         pytest.skip(f"{name}: {NOT_REPEATED[name]}")
     plain = _compose(name, [])
-    smoke = plain.get("smoke")
-    if smoke is None:
-        pytest.skip(f"{name}: no smoke overrides in its config")
+    if not (Path(CONFIG_DIR) / "smoke" / f"{name}.yaml").is_file():
+        pytest.skip(f"{name}: no configs/smoke/{name}.yaml")
     results = []
     for run in ("a", "b"):
         out = tmp_path / run / "out"
-        config = _compose(name, [*smoke, *_redirect(plain, tmp_path / run), f"out={out}"])
+        config = _compose(name, [f"+smoke={name}", *_redirect(plain, tmp_path / run),
+                                 f"out={out}"])
         run_experiment(config, out)
         results.append(json.loads((out / "result.json").read_text()))
     assert _stable(results[0]) == _stable(results[1])

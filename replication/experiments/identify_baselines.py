@@ -22,6 +22,7 @@ from replication.figures import cloth_baselines_ecdf
 from replication.progress import bar, progress
 from replication.workers import process_pool
 
+
 def _check_optimisers(optimisers):
     check(len(optimisers) > 0, "optimisers: expected at least one entry")
     for entry in optimisers:

@@ -191,7 +191,9 @@ def baselines_section(result):
               "in K and K l for springs the constraint did not touch); that stage uses no cost "
               "evaluation and is not counted, its compute is about that of a few hundred "
               "small-cost evaluations (median run times per optimiser are in the result). "
-              "Then it scans tau on the cost and refines with a small paper-EA population.",
+              "Then it scans tau on the cost (a log grid, then zooms of 7 values: the same "
+              "one-dimensional search as the regression's own tau search) and refines with "
+              "a small paper-EA population.",
               "",
               "Wrong valley: the best point's tau is more than 20% above the truth, i.e. the "
               "deformation constraint is (mostly) switched off and K is too small to "

@@ -71,7 +71,7 @@ def test_data_refuses_zero_omega(tmp_path):
     ({"cell": 0}, "cell=0: expected > 0 pixels"),
 ])
 def test_single_rotation_refuses_bad_settings(tmp_path, method, message):
-    from replication.experiments.motion import single_rotation
+    from replication.experiments.motion_single import single_rotation
 
     config = {"seed": 0, "data": {"path": str(tmp_path / "never_read.npz")}, "method": method}
     with pytest.raises(InputError, match=re.escape(message)):

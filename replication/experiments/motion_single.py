@@ -1,0 +1,197 @@
+"""Runner of ``motion_single``: one rotation centre and Figs. 1-4 (paper 2.1-2.2).
+
+Apart from the other single-rotation runners (:mod:`replication.experiments.motion`),
+which import no figure: a change to Figs. 1-4 makes only this experiment stale.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from replication.errors import InputError
+from replication.experiments.motion import _check_settings, _load, _truth_of
+from replication.motion import baselines, irc, pyramid, single
+from replication.motion.derivatives import sequence_derivatives
+from replication.progress import bar, progress
+
+# a refinement on fewer pixels than this is reported with a warning
+MIN_REFINE_PIXELS = 100
+
+
+def check_motion(sequence):
+    """Refuse a sequence whose frames are all identical: there is no motion to find."""
+    frames = sequence.frames
+    change = np.abs(np.diff(frames, axis=0)).reshape(frames.shape[0] - 1, -1).max(axis=1)
+    if not np.any(change > 0):
+        raise InputError(f"{sequence.source}: no motion found: all {frames.shape[0]} frames "
+                         "are identical; expected a sequence in which something turns")
+
+
+def answer_warnings(paper, refined, settings):
+    """Warnings on a rotation estimate: the best peak at the edge of the omega sweep, a
+    refinement on too few pixels, a refined omega outside the sweep."""
+    low, high = float(settings["omega_min"]), float(settings["omega_max"])
+    step = (high - low) / max(int(settings["omega_count"]) - 1, 1)
+    warnings = []
+    if min(abs(paper["omega"] - low), abs(paper["omega"] - high)) <= step / 2:
+        warnings.append(f"irc.omega={paper['omega']:.4g} is at the edge of the sweep "
+                        f"[{low:g}, {high:g}]: the rotation may lie outside it (widen "
+                        "method.omega_min/omega_max)")
+    if refined.get("pixels", 0) < MIN_REFINE_PIXELS:
+        warnings.append(f"irc_refined: refinement on {refined.get('pixels', 0)} pixel(s), "
+                        f"fewer than {MIN_REFINE_PIXELS}: the refined estimate is not reliable")
+    if not low <= refined["omega"] <= high:
+        warnings.append(f"irc_refined.omega={refined['omega']:.4g} is outside the sweep "
+                        f"[{low:g}, {high:g}]")
+    return warnings
+
+
+def _draw_figures(sequence, found, settings, figure_dir):
+    """Figs. 1-4 for one sequence, from the arrays of :func:`single.find_rotation`."""
+    from replication.figures import fig01_flow, fig02_peak_vs_omega, fig03_accumulator, fig04_pixels
+
+    figure_dir.mkdir(parents=True, exist_ok=True)
+    truth = _truth_of(sequence)
+    paper, refined, table, grid = found["paper"], found["refined"], found["table"], found["grid"]
+    flow = baselines.optical_flow_rotation(sequence.frames, method="tvl1")["flow"]
+    paths = [fig01_flow.draw(figure_dir / "fig01_flow.png", sequence.frames[0], flow)]
+    paths.append(fig02_peak_vs_omega.draw(
+        figure_dir / "fig02_peak_vs_omega.png", table["omega"], table["peak"],
+        best=paper["omega"], refined=refined["omega"],
+        truth=None if truth is None else truth["omega"]))
+    acc = irc.accumulate(found["pixels"], paper["omega"], grid)
+    extent = (grid.x0 - grid.cell / 2, grid.x0 + (grid.nx - 0.5) * grid.cell,
+              grid.y0 + (grid.ny - 0.5) * grid.cell, grid.y0 - grid.cell / 2)
+    paths.append(fig03_accumulator.draw(
+        figure_dir / "fig03_accumulator.png", acc, extent, peak=(paper["xi"], paper["eta"]),
+        truth=None if truth is None else (truth["xi"], truth["eta"]), omega=paper["omega"]))
+    pixels = found["pixels"]
+    first = pixels.pair == 0
+    distance = irc.line_distance(pixels, paper["xi"], paper["eta"], paper["omega"])[first]
+    closeness = np.zeros(sequence.frames.shape[1:])
+    closeness[pixels.y[first].astype(int), pixels.x[first].astype(int)] = np.clip(
+        1.0 - distance / settings["region_tol"], 0.0, 1.0)
+    outline = None if sequence.labels is None else sequence.labels[0] > 0
+    paths.append(fig04_pixels.draw(figure_dir / "fig04_pixels.png", closeness,
+                                   region=found["region"], label_outline=outline))
+    return [str(p) for p in paths]
+
+
+# calls of the omega sweep at most, so that its bar moves (each call a few accumulations)
+SWEEP_STEPS = 100
+
+
+def shown_sweep(pixels, omegas, grid):
+    """:func:`irc.sweep` followed on a progress bar ("omega sweep"): the same table, computed
+    in up to :data:`SWEEP_STEPS` calls (each omega's accumulator is independent).
+
+    Parameters
+    ----------
+    pixels, omegas, grid
+        As :func:`irc.sweep`: voting pixels, ``(m,)`` non-zero omegas, accumulator grid.
+    """
+    import numba
+
+    threads = numba.get_num_threads()
+    step = threads * max(1, -(-omegas.size // (SWEEP_STEPS * threads)))
+    parts = []
+    with bar(omegas.size, "omega sweep") as shown:
+        for start in range(0, omegas.size, step):
+            parts.append(irc.sweep(pixels, omegas[start:start + step], grid))
+            shown.update(len(parts[-1]["omega"]))
+    return {key: np.concatenate([part[key] for part in parts]) for key in parts[0]}
+
+
+def find_rotation_shown(frames, settings):
+    """:func:`single.find_rotation` with its omega sweep on a progress bar (same result).
+
+    Parameters
+    ----------
+    frames : (T, H, W) ndarray
+    settings : dict
+        Keys of ``single.DEFAULTS``.
+    """
+    start = time.perf_counter()
+    pixels = sequence_derivatives(frames, sigma=settings["sigma"],
+                                  relative_threshold=settings["relative_threshold"])
+    grid = irc.image_grid(frames.shape[1:], margin=settings["margin"], cell=settings["cell"])
+    omegas = irc.omega_sweep(settings["omega_min"], settings["omega_max"],
+                             int(settings["omega_count"]))
+    progress(f"omega sweep: {omegas.size} values, {len(pixels)} voting pixels, "
+             f"accumulator {grid.ny} x {grid.nx}")
+    table = shown_sweep(pixels, omegas, grid)
+    paper = irc.paper_estimate(table)
+    middle = time.perf_counter()
+    progress(f"refining from omega = {paper['omega']:.4g} ({settings['rounds']} round(s))")
+    refined = single.refined_method(frames, paper, pixels, settings)
+    seconds = {"paper": middle - start, "refined": time.perf_counter() - middle}
+    region = refined.pop("region")
+    return {"paper": paper, "refined": refined, "seconds": seconds, "table": table,
+            "pixels": pixels, "grid": grid, "region": region}
+
+
+def _top_level(sequence, found):
+    """The sequence and the answer on the pyramid's top level (``accumulation: pyramid``),
+    in that level's pixels, for Figs. 1-4: the figures show where the votes were cast."""
+    top, factor = found["pyramid"]["top"], found["pyramid"]["factor"]
+    shown = dict(found, paper=top["paper"], table=top["table"], grid=top["grid"],
+                 refined=dict(top["refined"], omega=found["refined"]["omega"]))
+    return pyramid.sequence_on_level(sequence, top["frames"], factor), shown
+
+
+def _pyramid_summary(found):
+    """``pyramid`` of ``result.json``: factor, level shapes and the answer on each level."""
+    info = found["pyramid"]
+    return {"factor": info["factor"], "shapes": info["shapes"],
+            "top": {key: info["top"]["refined"][key] for key in ("xi", "eta", "omega")},
+            "levels": info["levels"]}
+
+
+def single_rotation(config, out):
+    """Paper 2.2 on one sequence: ``irc`` (paper estimate), ``irc_refined``, Figs. 1-4.
+
+    ``data.path`` null means the paper-like synthetic sequence ``default_data``, and the
+    figures go to ``figure_dir`` (``figures/``); for any other sequence they go to
+    ``out/figures``. With ``method.accumulation: pyramid`` the result also holds
+    ``pyramid`` (factor, level shapes, the answer on each level) and the figures show the
+    pyramid's top level, where the votes were cast.
+    """
+    settings = single.settings_from(config.get("method"))
+    _check_settings(settings)
+    given = config.get("data", {}).get("path")
+    sequence = _load(given or config["default_data"])
+    progress(f"{sequence.source}: {sequence.frames.shape[0]} frames of "
+             f"{sequence.frames.shape[1]} x {sequence.frames.shape[2]}")
+    check_motion(sequence)
+    single.warm_up()
+    found = (single.find_rotation(sequence.frames, settings)
+             if settings["accumulation"] == "pyramid"
+             else find_rotation_shown(sequence.frames, settings))
+    paper, refined = found["paper"], found["refined"]
+    progress(f"paper: {paper}; refined: {refined}")
+    result = {
+        "data": sequence.source,
+        "irc": paper,
+        "irc_refined": refined,
+        "warnings": answer_warnings(paper, refined, settings),
+        "seconds": found["seconds"],
+        "pixels_used": int(len(found["pixels"])),
+        "region_pixels": int(np.count_nonzero(found["region"])),
+        "sweep": {key: found["table"][key].tolist() for key in ("omega", "xi", "eta", "peak")},
+    }
+    if "pyramid" in found:
+        result["pyramid"] = _pyramid_summary(found)
+    truth = _truth_of(sequence)
+    if truth is not None:
+        result["truth"] = {k: truth[k] for k in ("xi", "eta", "omega")}
+        result["errors"] = {"paper": single.errors(paper, truth),
+                            "refined": single.errors(refined, truth)}
+    if config.get("figures", True):
+        figure_dir = Path(config.get("figure_dir", "figures")) if given is None \
+            else Path(out) / "figures"
+        shown = (sequence, found) if "pyramid" not in found else _top_level(sequence, found)
+        result["figures"] = _draw_figures(*shown, settings, figure_dir)
+    return result

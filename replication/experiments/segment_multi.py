@@ -1,0 +1,127 @@
+"""Runner of ``segment_multi``: paper 2.3 on one sequence, Figs. 5-7.
+
+Apart from the other segmentation runners (:mod:`replication.experiments.segment`), which
+import no figure: a change to Figs. 5-7 makes only this experiment stale.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from replication.errors import check
+from replication.experiments.segment import _load, score_objects
+from replication.progress import progress
+
+FIGURE_DIR = Path("figures")
+
+
+def write_mask(path, mask):
+    """One object's mask as an 8-bit PNG (255 inside, 0 outside).
+
+    Parameters
+    ----------
+    path : str or Path
+    mask : (H, W) bool ndarray
+    """
+    from PIL import Image
+
+    Image.fromarray(np.where(mask, 255, 0).astype(np.uint8)).save(path, compress_level=6)
+    return path
+
+
+def _objects_json(objects, out):
+    rows = []
+    for k, item in enumerate(objects, 1):
+        name = f"object_{k:02d}.png"
+        write_mask(Path(out) / name, item["mask"])
+        rows.append({"xi": float(item["xi"]), "eta": float(item["eta"]),
+                     "omega": float(item["omega"]), "area": int(item["area"]),
+                     "mask_file": name, "peak": int(item.get("peak", 0))})
+    return rows
+
+
+def _draw_figures(sequence, found, figure_dir):
+    """Figs. 5-7 from the arrays of :func:`segmentation.segment`."""
+    from replication.figures import fig05_discs, fig06_snakes, fig07_rotations
+    from replication.motion import irc
+
+    frame = sequence.frames[0]
+    paths = [fig05_discs.draw(figure_dir / "fig05_discs.png", frame, found["discs"],
+                              found["rotating"])]
+    paths.append(fig06_snakes.draw(figure_dir / "fig06_snakes.png", frame,
+                                   [(r["centre"], r["rho"]) for r in found["regions"]]))
+    panels = []
+    for item in found["objects"]:
+        grid = item["grid"]
+        inside = item["mask"][found["pixels"].y.astype(int), found["pixels"].x.astype(int)]
+        chosen = type(found["pixels"])(*(getattr(found["pixels"], f)[inside]
+                                         for f in ("x", "y", "gx", "gy", "gt", "pair")))
+        acc = irc.accumulate(chosen, item["omega"], grid)
+        extent = (grid.x0 - grid.cell / 2, grid.x0 + (grid.nx - 0.5) * grid.cell,
+                  grid.y0 + (grid.ny - 0.5) * grid.cell, grid.y0 - grid.cell / 2)
+        panels.append({"acc": acc, "extent": extent, "xi": item["xi"], "eta": item["eta"],
+                       "omega": item["omega"], "mask": item["mask"]})
+    truth = (sequence.truth or {}).get("objects", [])
+    paths.append(fig07_rotations.draw(figure_dir / "fig07_rotations.png", frame, panels,
+                                      truth=[(o["xi"], o["eta"]) for o in truth]))
+    return [str(p) for p in paths]
+
+
+def segment_sequence(config, out):
+    """Paper 2.3 on one sequence: ``objects`` (one mask file each in ``out``), Figs. 5-7.
+
+    ``data.path`` null means the configured ``default_data`` and the figures go to
+    ``figure_dir`` (``figures/``); for any other sequence they go to ``out/figures``. With
+    ``method.pyramid.enabled`` the result also holds ``pyramid`` (factor, level shapes, each
+    object's rotation on the top level and after each finer level) and the figures show the
+    pyramid's top level, where the segmentation ran.
+
+    Parameters
+    ----------
+    config, out
+        The resolved ``segment_multi`` config (plain dict, docs/experiments.md) and the run's
+        output folder.
+    """
+    from replication.motion import pyramid
+    from replication.motion.segment import pipeline as segmentation
+
+    settings = segmentation.settings_from(config.get("method"))
+    sequence, default = _load(config)
+    progress(f"{sequence.source}: {sequence.frames.shape[0]} frames of "
+             f"{sequence.frames.shape[1]} x {sequence.frames.shape[2]}")
+    if sequence.truth and sequence.labels is not None:
+        unlabelled = [i for i, item in enumerate(sequence.truth.get("objects", []))
+                      if "label" not in item]
+        check(not unlabelled, f"{sequence.source}: truth object {unlabelled[:1]} has no "
+                              "'label'; expected the label value of each object (scoring "
+                              "against the labels needs it)")
+    start = time.perf_counter()
+    found = segmentation.segment(sequence.frames, settings, int(config["seed"]))
+    seconds = time.perf_counter() - start
+    result = {"data": sequence.source, "objects": _objects_json(found["objects"], out),
+              "pipeline_seconds": seconds, "seconds": found["seconds"],
+              "evaluations": int(found["evaluations"]),
+              "discs": found["discs"].tolist(), "rotating": found["rotating"].tolist(),
+              "snake_iterations": [r["iterations"] for r in found["regions"]]}
+    progress(f"{len(found['objects'])} object(s) in {seconds:.1f} s")
+    if "pyramid" in found:
+        result["pyramid"] = {"factor": found["pyramid"]["factor"],
+                             "shapes": found["pyramid"]["shapes"],
+                             "objects": [{"top": item.get("top"), "levels": item.get("levels")}
+                                         for item in found["objects"]]}
+    if sequence.truth and sequence.labels is not None:
+        result["truth"] = sequence.truth["objects"]
+        result["score"] = score_objects(found["objects"], sequence.labels[0], sequence.truth)
+    if config.get("figures", True):
+        figure_dir = Path(config.get("figure_dir") or FIGURE_DIR) if default \
+            else Path(out) / "figures"
+        shown = (sequence, found)
+        if "pyramid" in found:
+            shown = (pyramid.sequence_on_level(sequence, found["pyramid"]["frames"],
+                                               found["pyramid"]["factor"]),
+                     dict(found, objects=found["pyramid"]["top_objects"]))
+        result["figures"] = _draw_figures(*shown, figure_dir)
+    return result

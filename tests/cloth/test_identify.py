@@ -122,3 +122,40 @@ def test_bounds_low_not_below_high_are_refused(trajectory):
 def test_frame_outside_the_data_is_refused(trajectory):
     with pytest.raises(InputError, match="outside the data"):
         problem.cost_from_config(trajectory, {"kind": "frames", "frames": [150, 900]})
+
+
+@pytest.mark.parametrize("method, settings", [
+    ("pymoo", {"algorithm": "de", "options": {"pop_size": 10}}),
+    ("least_squares", {}),
+])
+def test_identify_runs_every_kind_of_the_solver_table_within_its_budget(trajectory, method,
+                                                                       settings):
+    """identify() and the baselines study share one solver table: the pymoo and scipy
+    baselines run through identify() too, counted and reproducible from the seed."""
+    runs = [identify(trajectory, rng=3, budget=60, method=method, settings=settings)
+            for _ in range(2)]
+    (best, cost, info), (again, cost_again, _) = runs
+    assert info["n_evals"] == 60 and len(best) == 5
+    assert best.tolist() == again.tolist() and cost == cost_again
+    assert cost == min(info["trace"]["values"])
+
+
+def test_identify_refuses_an_unknown_method_and_a_bad_algorithm(trajectory):
+    with pytest.raises(InputError, match="method='simplex': expected one of paper_ea, "
+                                         "structured, pymoo, least_squares"):
+        identify(trajectory, method="simplex")
+    with pytest.raises(InputError, match="algorithm='bfgs'"):
+        identify(trajectory, method="pymoo", budget=10, settings={"algorithm": "bfgs"})
+
+
+def test_structured_defaults_are_the_config_group():
+    """identify()'s default structured settings are read from the config group, not kept
+    as a copy in the code."""
+    from omegaconf import OmegaConf
+
+    from replication.cloth.identify import default_structured
+    from replication.cli import CONFIG_DIR
+
+    group = OmegaConf.to_container(OmegaConf.load(f"{CONFIG_DIR}/structured/default.yaml"))
+    assert default_structured() == group and set(group) == {"regression", "tau_scan",
+                                                            "refine"}

@@ -79,8 +79,9 @@ def reference_rest_lengths(h):
 
 
 def type_lengths(positions, n, *, statistic="mean"):
-    """One number per spring type from recorded positions: the ``statistic`` (``"mean"``
-    or ``"median"``) of the lengths of that type's springs over every frame given.
+    """One length per spring type from recorded positions, over every frame given:
+    ``"mean"``, each spring's mean length over the frames, averaged over the type's
+    springs; ``"median"``, the median of all the type's lengths in all the frames.
 
     The one place spring lengths per type are measured: cost normalisation (first frame),
     the search bounds (mean over all frames) and the regression's starting lengths (median
@@ -100,5 +101,9 @@ def type_lengths(positions, n, *, statistic="mean"):
     x = np.asarray(positions, dtype=float).reshape(-1, n * n, 3)
     a, b, kind = springs(n)
     length = np.linalg.norm(x[:, b] - x[:, a], axis=2)
-    reduce = {"mean": np.mean, "median": np.median}[statistic]
-    return np.array([reduce(length[:, kind == t]) for t in range(N_TYPES)])
+    if statistic == "mean":
+        per_spring = length.mean(axis=0)
+        return np.array([per_spring[kind == t].mean() for t in range(N_TYPES)])
+    if statistic == "median":
+        return np.array([np.median(length[:, kind == t]) for t in range(N_TYPES)])
+    raise ValueError(f"statistic={statistic!r}: expected 'mean' or 'median'")

@@ -13,17 +13,22 @@ STARTS = ("recorded", "centred")
 
 
 def split_frames(n_frames, *, block=25, every=4):
-    """Training frames and held-out blocks: block ``k`` is held out when ``k % every ==
-    every - 1`` and whole (frames ``0..n_frames-2``, each with a next frame); training
-    frames keep 3 frames away from held-out ones (instruments).
+    """Training frames and held-out blocks: block ``k`` (frames ``k*block`` on) is held
+    out when ``k % every == every - 1``; every block is whole and made of frames that have
+    a next frame (``0..n_frames-2``), so a last block that would reach frame
+    ``n_frames - 1`` starts one frame earlier. Training frames keep 3 frames away from
+    held-out ones (instruments).
 
     Returns
     -------
     train : (F,) int ndarray; held_out : list of (B,) int ndarrays (frames of each block)
     """
     frames = np.arange(n_frames - 1)   # each with a next frame
-    held = [frames[k * block:(k + 1) * block] for k in range(frames.size // block)
-            if k % every == every - 1]
+    held = []
+    for k in range(every - 1, n_frames // block, every):
+        start = min(k * block, frames.size - block)
+        if not held or start > held[-1][-1]:
+            held.append(frames[start:start + block])
     near = np.zeros(n_frames, dtype=bool)
     for chunk in held:
         near[max(chunk[0] - 3, 0):min(chunk[-1] + 4, n_frames)] = True

@@ -2,6 +2,7 @@
 against the physical definitions of docs/cloth-model.md written out spring by spring."""
 
 import numpy as np
+import pytest
 
 from replication.cloth import geometry
 
@@ -270,3 +271,25 @@ def test_scatter_adds_each_spring_vector_to_a_and_subtracts_it_from_b():
     got = geometry.scatter(m, per_spring)
     assert got.shape == (3, n * n, 3)
     np.testing.assert_allclose(got, want, rtol=0, atol=ATOL)
+
+
+def test_type_lengths_of_the_flat_sheet_and_of_a_stretched_frame():
+    """The one measure of spring lengths per type: on the contract's flat sheet the six
+    types are h, h, h sqrt 2, h sqrt 2, 2h, 2h; with a second frame stretched by 1.5 along
+    x the mean of a type is the average of both frames, the median the middle value."""
+    from replication.cloth.mesh import flat_rest_positions, spacing, type_lengths
+
+    n = 5
+    h = spacing(n)
+    flat = flat_rest_positions(n)
+    expected = h * np.array([1.0, 1.0, np.sqrt(2), np.sqrt(2), 2.0, 2.0])
+    np.testing.assert_allclose(type_lengths(flat, n), expected, rtol=1e-14)
+    stretched = flat * np.array([1.5, 1.0, 1.0])
+    both = np.stack([flat, flat, stretched])
+    mean = type_lengths(both, n)
+    # type 0 joins (i, j)-(i, j+1): along x, so 1.5 h in the stretched frame
+    assert mean[0] == pytest.approx((2 * h + 1.5 * h) / 3, rel=1e-14)
+    assert mean[1] == pytest.approx(h, rel=1e-14)            # along y: unchanged
+    assert type_lengths(both, n, statistic="median")[0] == pytest.approx(h, rel=1e-14)
+    with pytest.raises(ValueError, match="statistic='max'"):
+        type_lengths(flat, n, statistic="max")

@@ -187,20 +187,20 @@ def test_structure_flags_white_residuals_which_a_right_model_cannot_produce():
     assert out["Q_patch"] == pytest.approx(25.0, rel=0.15)
 
 
-@pytest.mark.parametrize("n_frames, block, every", [
-    (501, 25, 4), (510, 25, 4), (203, 10, 3), (101, 5, 2),
+@pytest.mark.parametrize("n_frames, block, every, starts", [
+    (501, 25, 4, [75, 175, 275, 375, 475]), (510, 25, 4, [75, 175, 275, 375, 475]),
+    (203, 10, 3, [20, 50, 80, 110, 140, 170]), (101, 5, 2, list(range(5, 100, 10))),
     # block divides n_frames: the last block would end on the last frame, which has no
-    # next one; it used to be held out one frame short (and rollout_error takes the
-    # shortest block for all)
-    (500, 25, 4), (100, 25, 2),
+    # next one, so it starts a frame earlier (it used to be held out one frame short,
+    # and rollout_error takes the shortest block for all; 100 frames must keep a block)
+    (500, 25, 4, [75, 175, 275, 375, 474]), (100, 25, 2, [25, 74]), (100, 25, 4, [74]),
 ])
 def test_split_frames_holds_out_blocks_and_keeps_training_three_frames_away(n_frames, block,
-                                                                           every):
+                                                                           every, starts):
     """Block k (frames k*block .. (k+1)*block - 1) is held out when k % every == every - 1;
     frames 0..n-2 are each exactly one of: training, held out, within 3 of a held block."""
     train, held = gap.split_frames(n_frames, block=block, every=every)
-    starts = [int(chunk[0]) for chunk in held]
-    assert starts == list(range((every - 1) * block, n_frames - block, every * block))
+    assert [int(chunk[0]) for chunk in held] == starts
     for chunk in held:
         assert chunk.tolist() == list(range(chunk[0], chunk[0] + block))
     held_all = np.concatenate(held)

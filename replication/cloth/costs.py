@@ -114,6 +114,32 @@ class ClothCost:
         """Cost per individual, shape (pop,)."""
         return self.frame_errors(params, extra_force).sum(axis=1)
 
+    def tau_costs(self, rest, k, tau, extra_force=None):
+        """Cost of one parameter set under each row of ``tau``, shape (B,): the same
+        numbers as calling the cost on ``rest`` and ``k`` repeated B times, with the
+        forces computed once per frame (a tau search's batch).
+
+        Parameters
+        ----------
+        rest, k : (6,) ndarray
+            Per-type rest lengths and stiffnesses.
+        tau : (B, 6) ndarray
+            Per-type critical elongation rates, one row per candidate.
+        extra_force : ndarray, optional
+            Shape ``(1, F or 1, n*n, 3)``: shared by every candidate.
+        """
+        if extra_force is None:
+            extra_force = self._no_force
+        extra_force = np.ascontiguousarray(extra_force, dtype=float)
+        if extra_force.shape[0] != 1:
+            raise ValueError("tau_costs: the external force must be shared by the batch "
+                             f"(first axis 1), got shape {extra_force.shape}")
+        errors = kernels.one_step_errors_tau(
+            self.xs, self.vs, self.frames, np.ascontiguousarray(rest, dtype=float),
+            np.ascontiguousarray(k, dtype=float), np.ascontiguousarray(tau, dtype=float),
+            extra_force, self.dtc, *self.scene.kernel_args())
+        return (errors / self.norm).sum(axis=1)
+
 
 def make_cost(trajectory, kind="small", *, frame=SMALL_FRAME, start=FULL_START,
               window=FULL_WINDOW, dtc=None, h=None):

@@ -21,6 +21,16 @@ def _step_into(x, v, rest, k, tau, extra, sa, sb, st, free, mass, gravity, dampi
     sa, sb, st : (S,) spring ends and types; free : (P,) bool; mass : (P,);
     force, corr : (P, 3) and count : (P,) scratch; x_out, v_out : (P, 3) results.
     """
+    _predict_into(x, v, rest, k, extra, sa, sb, st, free, mass, gravity, damping, dt, force,
+                  x_out)
+    _constrain_into(x, rest, tau, sa, sb, st, free, dt, corr, count, x_out, v_out)
+
+
+@njit(cache=True, fastmath=False, nogil=True)
+def _predict_into(x, v, rest, k, extra, sa, sb, st, free, mass, gravity, damping, dt, force,
+                  x_out):
+    """Steps 1-2 of :func:`_step_into`: forces, then ``x' = x + dt v'`` into ``x_out``
+    (tau plays no part before the constraint)."""
     n_particles = x.shape[0]
     n_springs = sa.shape[0]
     for p in range(n_particles):
@@ -51,6 +61,16 @@ def _step_into(x, v, rest, k, tau, extra, sa, sb, st, free, mass, gravity, dampi
             else:
                 vel = 0.0
             x_out[p, c] = x[p, c] + dt * vel
+
+
+@njit(cache=True, fastmath=False, nogil=True)
+def _constrain_into(x, rest, tau, sa, sb, st, free, dt, corr, count, x_out, v_out):
+    """Steps 3-4 of :func:`_step_into` on ``x_out`` = x' (changed in place into x''):
+    the deformation constraint, then ``v'' = (x'' - x) / dt`` into ``v_out``."""
+    n_particles = x.shape[0]
+    n_springs = sa.shape[0]
+    for p in range(n_particles):
+        for c in range(3):
             corr[p, c] = 0.0
         count[p] = 0.0
     # 3: one Jacobi pass of the deformation constraint on x'
@@ -157,6 +177,20 @@ def rollout_batch(x0, v0, rest, k, tau, n_steps, sa, sb, st, free, mass, gravity
     return xs, vs
 
 
+@njit(cache=True, fastmath=False, nogil=True)
+def _error(x_hat, v_hat, x_next, v_next, dtc):
+    """``sum_p |x^_p - x_p|^2 + dtc^2 |v^_p - v_p|^2``; ``inf`` when not finite."""
+    total = 0.0
+    for p in range(x_hat.shape[0]):
+        for c in range(3):
+            dx = x_hat[p, c] - x_next[p, c]
+            dv = v_hat[p, c] - v_next[p, c]
+            total += dx * dx + dtc * dtc * dv * dv
+    if not np.isfinite(total):
+        total = np.inf
+    return total
+
+
 @njit(cache=True, parallel=True)
 def one_step_errors(xs, vs, frames, rest, k, tau, extra, dtc, sa, sb, st, free, mass,
                     gravity, damping, dt):
@@ -197,13 +231,48 @@ def one_step_errors(xs, vs, frames, rest, k, tau, extra, dtc, sa, sb, st, free, 
         ef = f if extra.shape[1] > 1 else 0
         _step_into(xs[t], vs[t], rest[i], k[i], tau[i], extra[ei, ef], sa, sb, st, free, mass,
                    gravity, damping, dt, force, corr, count, x_hat, v_hat)
-        total = 0.0
-        for p in range(n_particles):
-            for c in range(3):
-                dx = x_hat[p, c] - xs[t + 1, p, c]
-                dv = v_hat[p, c] - vs[t + 1, p, c]
-                total += dx * dx + dtc * dtc * dv * dv
-        if not np.isfinite(total):
-            total = np.inf
-        errors[i, f] = total
+        errors[i, f] = _error(x_hat, v_hat, xs[t + 1], vs[t + 1], dtc)
+    return errors
+
+
+@njit(cache=True, parallel=True)
+def one_step_errors_tau(xs, vs, frames, rest, k, tau, extra, dtc, sa, sb, st, free, mass,
+                        gravity, damping, dt):
+    """:func:`one_step_errors` of one (rest, k) under many tau: ``e`` (B, F), equal bit for
+    bit to ``one_step_errors`` with ``rest`` and ``k`` repeated over the batch. The forces
+    and the Euler step (no tau in them) are computed once per frame, the constraint per tau.
+
+    Parameters
+    ----------
+    xs, vs : (T, P, 3) ndarray
+    frames : (F,) int ndarray
+    rest, k : (6,) ndarray
+    tau : (B, 6) ndarray
+    extra : (1, EF, P, 3) ndarray
+        External forces shared by the batch; ``EF`` in {1, F}.
+    dtc, sa, sb, st, free, mass, gravity, damping, dt
+        As :func:`one_step_errors`.
+    """
+    n_batch = tau.shape[0]
+    n_frames = frames.shape[0]
+    n_particles = xs.shape[1]
+    errors = np.empty((n_batch, n_frames))
+    shared_frame = extra.shape[1] == 1
+    for job in prange(n_frames):
+        f = np.int64(job)
+        t = frames[f]
+        force = np.empty((n_particles, 3))
+        corr = np.empty((n_particles, 3))
+        count = np.empty(n_particles)
+        x_pred = np.empty((n_particles, 3))
+        x_hat = np.empty((n_particles, 3))
+        v_hat = np.empty((n_particles, 3))
+        ef = np.int64(0) if shared_frame else f
+        _predict_into(xs[t], vs[t], rest, k, extra[0, ef], sa, sb, st, free, mass, gravity,
+                      damping, dt, force, x_pred)
+        for i in range(n_batch):
+            x_hat[:] = x_pred
+            _constrain_into(xs[t], rest, tau[i], sa, sb, st, free, dt, corr, count, x_hat,
+                            v_hat)
+            errors[i, f] = _error(x_hat, v_hat, xs[t + 1], vs[t + 1], dtc)
     return errors

@@ -76,6 +76,7 @@ class Data(NamedTuple):
     mass: np.ndarray      # (P,)
     free: np.ndarray      # (P,) bool
     h: float
+    cache: dict           # quantities of the recorded frames computed once (state_frames)
 
     @property
     def n_frames(self):
@@ -134,7 +135,7 @@ class StateFrames:
         Known linear damping of the data file.
     """
 
-    def __init__(self, x, v, ops, mass, rest, k, damping=0.0):
+    def __init__(self, x, v, ops, mass, rest, k, damping=0.0, sums=None):
         self.x = x
         self.v = v
         self.ops = ops
@@ -142,6 +143,8 @@ class StateFrames:
         self.rest = np.asarray(rest, dtype=float)
         self.k = np.asarray(k, dtype=float)
         self.damping = float(damping)
+        if sums is not None:   # spring_sums(ops, x), already computed
+            self.__dict__["sums"] = sums
 
     @cached_property
     def sums(self):
@@ -188,7 +191,7 @@ def prepare(trajectory):
     target -= scene.gravity[None, None, :]
     target += scene.damping * v / scene.mass[None, :, None]
     return Data(trajectory, x, v, target, scene, geometry.MeshOperators(trajectory.n),
-                scene.mass, scene.free, structural_length(trajectory))
+                scene.mass, scene.free, structural_length(trajectory), {})
 
 
 def n_base(model):
@@ -224,10 +227,21 @@ def base_from_theta(theta, model, tau):
 
 
 def state_frames(data, base, frames=None):
-    """:class:`StateFrames` of ``frames`` (all frames when None) at the ``base`` model."""
-    x = data.x if frames is None else data.x[frames]
-    v = data.v if frames is None else data.v[frames]
-    return StateFrames(x, v, data.ops, data.mass, base.rest, base.k, data.scene.damping)
+    """:class:`StateFrames` of ``frames`` (all frames when None) at the ``base`` model.
+
+    The spring sums of all frames depend on the recorded positions alone: they are
+    computed once per ``data`` and shared by every base model's states.
+    """
+    if frames is None:
+        if "sums" not in data.cache:
+            sums = geometry.spring_sums(data.ops, data.x)
+            for array in sums:
+                array.flags.writeable = False   # shared: nobody may change them
+            data.cache["sums"] = sums
+        return StateFrames(data.x, data.v, data.ops, data.mass, base.rest, base.k,
+                           data.scene.damping, sums=data.cache["sums"])
+    return StateFrames(data.x[frames], data.v[frames], data.ops, data.mass, base.rest,
+                       base.k, data.scene.damping)
 
 
 def design(data, base, plugins, model, frames=None):
@@ -391,11 +405,8 @@ def search_tau(data, base, terms, frames, *, max_frames=50, levels=9):
             else np.geomspace(3e-3, 3.0, 64))
 
     def evaluate(taus):
-        pop = len(taus)
-        params = ClothParams(np.repeat(base.rest[None], pop, 0),
-                             np.repeat(base.k[None], pop, 0),
-                             np.repeat(np.asarray(taus)[:, None], N_TYPES, 1))
-        return cost(params, extra)
+        return cost.tau_costs(base.rest, base.k,
+                              np.repeat(np.asarray(taus)[:, None], N_TYPES, 1), extra)
 
     return zoom(evaluate, grid, levels=levels, points=21)[0]
 

@@ -126,10 +126,10 @@ def _methods(config, settings):
     return {
         "TV-L1 flow + rigid fit": lambda frames, seed: baselines.optical_flow_rotation(
             frames, method="tvl1", motion_min=motion_min, erode=erode,
-            flow_options=flow.get("tvl1")),
+            flow_options=flow.get("tvl1"), cache_dir=flow.get("cache_dir")),
         "iLK flow + rigid fit": lambda frames, seed: baselines.optical_flow_rotation(
             frames, method="ilk", motion_min=motion_min, erode=erode,
-            flow_options=flow.get("ilk")),
+            flow_options=flow.get("ilk"), cache_dir=flow.get("cache_dir")),
         "direct least squares": lambda frames, seed: baselines.direct_least_squares(
             frames, sigma=settings["sigma"], relative_threshold=settings["relative_threshold"]),
         "DE on IRC residual": lambda frames, seed: baselines.de_rotation(

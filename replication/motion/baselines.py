@@ -6,7 +6,10 @@ Optical flow and direct least squares use the first frame pair; DE scores every 
 
 from __future__ import annotations
 
+import hashlib
 import math
+import os
+from pathlib import Path
 
 import numpy as np
 from scipy import ndimage
@@ -76,7 +79,7 @@ def rigid_fit(u, v, mask, *, tukey_c=1.0, iterations=10):
 
 
 def optical_flow_rotation(frames, *, method="tvl1", motion_min=0.25, erode=5, tukey_c=1.0,
-                          flow_options=None):
+                          flow_options=None, cache_dir=None):
     """scikit-image optical flow on the first pair, then :func:`rigid_fit` on moving pixels.
 
     Parameters
@@ -91,17 +94,17 @@ def optical_flow_rotation(frames, *, method="tvl1", motion_min=0.25, erode=5, tu
         across the object's edge, as the IRC refinement's region is.
     flow_options : dict or None
         Keyword arguments of the flow function.
+    cache_dir : str or Path, optional
+        Keep each flow field there (:func:`flow_field`): studies that vary only the
+        moving-region settings or the other method's options compute each field once.
 
     Returns
     -------
     dict
         ``xi, eta, omega`` and ``flow`` ((2, H, W): ``u`` along x, ``v`` along y).
     """
-    from skimage.registration import optical_flow_ilk, optical_flow_tvl1
-
-    function = {"tvl1": optical_flow_tvl1, "ilk": optical_flow_ilk}[method]
-    # skimage returns (row, col) = (v, u), the displacement from frame 0 to frame 1
-    v, u = function(frames[0], frames[1], **(flow_options or {}))
+    u, v = flow_field(frames[0], frames[1], method=method, options=flow_options,
+                      cache_dir=cache_dir)
     moving = np.hypot(u, v) >= motion_min
     if erode > 0:
         rows, cols = np.mgrid[-erode: erode + 1, -erode: erode + 1]
@@ -111,6 +114,39 @@ def optical_flow_rotation(frames, *, method="tvl1", motion_min=0.25, erode=5, tu
     fit = rigid_fit(u, v, moving, tukey_c=tukey_c)
     fit["flow"] = np.stack([u, v])
     return fit
+
+
+def flow_field(first, second, *, method="tvl1", options=None, cache_dir=None):
+    """scikit-image's optical flow from ``first`` to ``second``, as ``(u, v)`` (along x, y).
+
+    With ``cache_dir``, the field is read from there when it was computed before for the
+    same two images, method, options and scikit-image version (a file named by their
+    SHA-256), and written there otherwise: the same numbers, computed once.
+    """
+    import skimage
+    from skimage.registration import optical_flow_ilk, optical_flow_tvl1
+
+    function = {"tvl1": optical_flow_tvl1, "ilk": optical_flow_ilk}[method]
+    path = None
+    if cache_dir is not None:
+        first, second = np.ascontiguousarray(first), np.ascontiguousarray(second)
+        digest = hashlib.sha256(repr((method, sorted((options or {}).items()),
+                                      skimage.__version__, first.shape, first.dtype.str,
+                                      second.shape, second.dtype.str)).encode())
+        digest.update(first.tobytes())
+        digest.update(second.tobytes())
+        path = Path(cache_dir) / f"{digest.hexdigest()}.npy"
+        if path.is_file():
+            u, v = np.load(path)
+            return u, v
+    # skimage returns (row, col) = (v, u), the displacement from frame 0 to frame 1
+    v, u = function(first, second, **(options or {}))
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        partial = path.with_name(f"{path.stem}.{os.getpid()}.partial.npy")
+        np.save(partial, np.stack([u, v]))
+        os.replace(partial, path)   # whole files only: workers may share the folder
+    return u, v
 
 
 def direct_least_squares(frames, *, sigma=1.5, relative_threshold=0.15):

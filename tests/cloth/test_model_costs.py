@@ -52,3 +52,24 @@ def test_blown_up_simulation_gives_infinite_cost_never_nan(reference):
         values = make_cost(trajectory, kind)(params_from_vectors(X))
         assert not np.any(np.isnan(values))
         assert np.isinf(values[0]) and np.isinf(values[1]) and np.isfinite(values[2])
+
+
+def test_tau_costs_equal_the_cost_of_the_repeated_population(reference):
+    """The tau search's shortcut (forces once per frame, the constraint per tau) gives
+    the very numbers of the general cost, with and without external forces (per frame or
+    shared), from a constraint active on most springs to one that never acts."""
+    trajectory, truth = reference
+    cost = make_cost(trajectory, "full", start=100, window=12)
+    base = params_from_vectors(truth * [1.03, 0.98, 1.0, 0.9, 1.0])
+    rest, k = base.rest[0], base.k[0]
+    tau = np.repeat(np.r_[np.geomspace(0.01, 2.0, 9), 1e307][:, None], 6, axis=1)
+    rng = np.random.default_rng(3)
+    P = trajectory.n ** 2
+    for extra in (None, rng.normal(0, 1e-3, (1, 12, P, 3)), rng.normal(0, 1e-3, (1, 1, P, 3))):
+        general = cost(params_from_vectors(np.c_[np.repeat(truth[None, :4] * [1.03, 0.98, 1.0,
+                                                                               0.9], 10, 0),
+                                                 tau[:, 0]]), extra)
+        shortcut = cost.tau_costs(rest, k, tau, extra)
+        assert np.array_equal(general, shortcut)
+    with pytest.raises(ValueError, match="shared"):
+        cost.tau_costs(rest, k, tau, np.zeros((2, 1, P, 3)))

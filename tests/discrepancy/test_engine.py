@@ -4,7 +4,7 @@ both recover K and tau on noise-free references."""
 import numpy as np
 import pytest
 
-from replication.cloth import regression
+from replication.cloth import geometry, regression
 from replication.cloth.identify import identify
 from replication.cloth.identify import structured as identify_structured
 from replication.cloth.io import read_trajectory
@@ -83,3 +83,17 @@ def test_engine_leaves_the_wrong_valley_on_noisy_constrained_data(tmp_path, monk
     monkeypatch.setattr(regression, "VALLEY_REST", 0.0)      # the guard off: the valley
     trapped = regression.fit(data, frames)
     assert trapped.base.rest[0] < 0.9 * fitted.base.rest[0]
+
+
+def test_spring_sums_of_all_frames_are_computed_once_and_read_only():
+    data = regression.prepare(read_trajectory("synthetic_data/cloth/reference_tau0.1.npz"))
+    base = regression.BaseModel(np.full(6, data.h), np.full(6, 4.0), np.full(6, 0.1))
+    first = regression.state_frames(data, base).sums
+    other = regression.state_frames(data, base._replace(k=np.full(6, 2.0))).sums
+    assert first[0] is other[0] and first[1] is other[1]
+    fresh = geometry.spring_sums(data.ops, data.x)
+    assert all(np.array_equal(a, b) for a, b in zip(first, fresh))
+    with pytest.raises(ValueError):
+        first[0][0, 0, 0, 0] = 1.0
+    part = regression.state_frames(data, base, [5, 9]).sums   # a subset: its own sums
+    assert np.array_equal(part[0], fresh[0][:, [5, 9]])

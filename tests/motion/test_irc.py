@@ -130,3 +130,23 @@ def test_int16_and_int32_counters_agree():
                for dtype in (np.int16, np.int32)]
     for a, b in zip(*results):
         assert np.array_equal(a, b)
+
+
+def test_flow_cache_gives_the_same_numbers_and_keys_on_images_and_options(small_sequence,
+                                                                          tmp_path):
+    frames = small_sequence[0]
+    plain = baselines.optical_flow_rotation(frames, method="ilk")
+    stored = baselines.optical_flow_rotation(frames, method="ilk", cache_dir=tmp_path)
+    assert len(list(tmp_path.glob("*.npy"))) == 1
+    read = baselines.optical_flow_rotation(frames, method="ilk", cache_dir=tmp_path,
+                                           motion_min=0.5)
+    assert len(list(tmp_path.glob("*.npy"))) == 1          # moving-region settings: reused
+    assert np.array_equal(plain["flow"], stored["flow"])
+    assert np.array_equal(plain["flow"], read["flow"])
+    assert plain["xi"] == stored["xi"] and plain["omega"] == stored["omega"]
+    # any other image, method or option is another field
+    baselines.optical_flow_rotation(frames, method="ilk", cache_dir=tmp_path,
+                                    flow_options={"radius": 3})
+    baselines.optical_flow_rotation(frames[::-1], method="ilk", cache_dir=tmp_path)
+    assert len(list(tmp_path.glob("*.npy"))) == 3
+    assert not list(tmp_path.glob("*.partial*"))

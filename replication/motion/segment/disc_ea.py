@@ -254,14 +254,18 @@ def overlap_areas(x, y, r):
         Centres and radii, pixels.
     """
     d = np.hypot(x[:, None] - x[None, :], y[:, None] - y[None, :])
-    r1, r2 = r[:, None], r[None, :]
-    small = np.minimum(r1, r2)
+    r1, r2 = np.broadcast_arrays(r[:, None], r[None, :])
+    apart = d >= r1 + r2
+    inside = ~apart & (d <= np.abs(r1 - r2))       # one disc within the other
+    lens = ~(apart | inside)                        # the circles cross: a lens
+    area = np.zeros(d.shape)
+    area[inside] = np.pi * np.minimum(r1[inside], r2[inside]) ** 2
+    # the lens formula only where it applies (most pairs of a spread population are apart)
+    d, r1, r2 = d[lens], r1[lens], r2[lens]
     with np.errstate(invalid="ignore", divide="ignore"):
         a1 = np.arccos(np.clip((d * d + r1 * r1 - r2 * r2) / (2 * d * r1), -1, 1))
         a2 = np.arccos(np.clip((d * d + r2 * r2 - r1 * r1) / (2 * d * r2), -1, 1))
-        lens = (r1 * r1 * (a1 - np.sin(2 * a1) / 2) + r2 * r2 * (a2 - np.sin(2 * a2) / 2))
-    area = np.where(d >= r1 + r2, 0.0, np.where(d <= np.abs(r1 - r2), np.pi * small ** 2,
-                                                  lens))
+        area[lens] = (r1 * r1 * (a1 - np.sin(2 * a1) / 2) + r2 * r2 * (a2 - np.sin(2 * a2) / 2))
     return np.nan_to_num(area)
 
 

@@ -276,3 +276,30 @@ def one_step_errors_tau(xs, vs, frames, rest, k, tau, extra, dtc, sa, sb, st, fr
                             v_hat)
             errors[i, f] = _error(x_hat, v_hat, xs[t + 1], vs[t + 1], dtc)
     return errors
+
+
+@njit(cache=True, fastmath=False, nogil=True)
+def stretched_ends(positions, sa, sb, limit):
+    """Particles at an end of a spring longer than its limit, per frame: (F, P) bool.
+
+    Parameters
+    ----------
+    positions : (F, P, 3) ndarray
+    sa, sb : (S,) int ndarray
+        Spring ends.
+    limit : (S,) ndarray
+        Length above which a spring counts as stretched (strictly).
+    """
+    n_frames, n_particles = positions.shape[0], positions.shape[1]
+    hit = np.zeros((n_frames, n_particles), dtype=np.bool_)
+    for f in range(n_frames):
+        for s in range(sa.shape[0]):
+            a = sa[s]
+            b = sb[s]
+            d0 = positions[f, b, 0] - positions[f, a, 0]
+            d1 = positions[f, b, 1] - positions[f, a, 1]
+            d2 = positions[f, b, 2] - positions[f, a, 2]
+            if np.sqrt(d0 * d0 + d1 * d1 + d2 * d2) > limit[s]:
+                hit[f, a] = True
+                hit[f, b] = True
+    return hit

@@ -43,7 +43,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.signal import savgol_filter
 
-from replication.cloth import geometry
+from replication.cloth import geometry, kernels
 from replication.cloth.costs import ClothCost, structural_length
 from replication.cloth.mesh import FAMILY_OF_TYPE, N_TYPES, type_lengths
 from replication.cloth.model import ClothParams, step
@@ -310,12 +310,7 @@ def constraint_mask(data, base, terms, frames, *, margin=MASK_MARGIN, noisy=Fals
     a, b, kind = data.ops.a, data.ops.b, data.ops.kind
     limit = (1.0 + base.tau[kind] * (1.0 - margin)) * base.rest[kind]
     for positions in sources:
-        length = np.linalg.norm(positions[:, b] - positions[:, a], axis=2)
-        rows, over = np.nonzero(length > limit[None, :])
-        hit = np.zeros((len(frames), data.x.shape[1]), dtype=bool)
-        hit[rows, a[over]] = True
-        hit[rows, b[over]] = True
-        mask[frames] &= ~hit
+        mask[frames] &= ~kernels.stretched_ends(np.ascontiguousarray(positions), a, b, limit)
     return mask
 
 

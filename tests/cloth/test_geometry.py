@@ -293,3 +293,21 @@ def test_type_lengths_of_the_flat_sheet_and_of_a_stretched_frame():
     assert type_lengths(both, n, statistic="median")[0] == pytest.approx(h, rel=1e-14)
     with pytest.raises(ValueError, match="statistic='max'"):
         type_lengths(flat, n, statistic="max")
+
+
+def test_stretched_ends_marks_both_ends_of_each_spring_strictly_over_its_limit():
+    from replication.cloth import kernels
+
+    rng = np.random.default_rng(5)
+    ops = geometry.MeshOperators(5)
+    a, b = ops.a, ops.b
+    positions = rng.normal(0, 1, (4, 25, 3))
+    length = np.sqrt(((positions[:, b] - positions[:, a]) ** 2).sum(axis=2))
+    limit = np.median(length, axis=0)
+    limit[::3] = length[2, ::3]                     # exactly at the limit: not stretched
+    expected = np.zeros((4, 25), dtype=bool)
+    for f in range(4):
+        for s in range(len(a)):
+            if length[f, s] > limit[s]:
+                expected[f, a[s]] = expected[f, b[s]] = True
+    assert np.array_equal(kernels.stretched_ends(positions, a, b, limit), expected)

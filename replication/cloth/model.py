@@ -97,6 +97,10 @@ class ClothParams(NamedTuple):
         return self.rest.shape[0]
 
 
+_K_COLUMNS = np.full(N_TYPES, 3)     # column of K in a 5-parameter row, once per type
+_TAU_COLUMNS = np.full(N_TYPES, 4)   # column of tau
+
+
 def params_from_vectors(X):
     """Parameter vectors to :class:`ClothParams`.
 
@@ -108,9 +112,9 @@ def params_from_vectors(X):
     """
     X = np.atleast_2d(np.asarray(X, dtype=float))
     if X.shape[1] == 5:
-        rest = X[:, :3][:, FAMILY_OF_TYPE]
-        k = np.repeat(X[:, 3:4], N_TYPES, axis=1)
-        tau = np.repeat(X[:, 4:5], N_TYPES, axis=1)
+        rest = X[:, FAMILY_OF_TYPE]                  # columns 0-2 are the families
+        k = X[:, _K_COLUMNS]
+        tau = X[:, _TAU_COLUMNS]
     elif X.shape[1] == 18:
         rest, k, tau = X[:, 0:6], X[:, 6:12], X[:, 12:18]
     else:

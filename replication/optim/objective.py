@@ -115,8 +115,10 @@ class Objective:
         """Count ``values`` (rows of ``X``) and update the best-so-far trace."""
         values = np.where(np.isfinite(values), values, np.inf)
         running = np.minimum.accumulate(values)
-        for i in np.flatnonzero((running < self.best_value)
-                                & np.r_[True, running[1:] < running[:-1]]):
+        # improvements: below the best so far and below every earlier row of the batch
+        improved = running < self.best_value
+        improved[1:] &= running[1:] < running[:-1]
+        for i in np.flatnonzero(improved):
             self.best_value = float(values[i])
             self.best_point = X[i].copy()
             self.trace.evals.append(self.n_evals + int(i) + 1)

@@ -94,3 +94,25 @@ def test_the_refinement_box_shares_the_counter_and_narrows_the_bounds(case):
     boxed.evaluate(x[None, :])
     assert objective.n_evals == boxed.n_evals == 1
     assert np.all(boxed.lower > objective.lower) and np.all(boxed.upper < objective.upper)
+
+
+def test_engine_fit_is_computed_once_per_trajectory_and_forgotten_with_it(monkeypatch):
+    import gc
+
+    from replication.cloth import regression
+    from replication.cloth.identify import structured
+    from replication.cloth.io import read_trajectory
+
+    calls = []
+    real = regression.fit
+    monkeypatch.setattr(regression, "fit", lambda *a, **k: calls.append(1) or real(*a, **k))
+    trajectory = read_trajectory("synthetic_data/cloth/reference_tau0.5.npz")
+    frames = structured.regression_frames(trajectory.n_frames, first=1, stride=25)
+    first = structured.engine_fit(trajectory, frames, "5")
+    assert structured.engine_fit(trajectory, frames, "5") is first and len(calls) == 1
+    structured.engine_fit(trajectory, frames[::2], "5")            # other frames: a new fit
+    assert len(calls) == 2
+    key = id(trajectory)
+    del trajectory
+    gc.collect()
+    assert key not in structured._FITS

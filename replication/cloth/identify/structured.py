@@ -18,6 +18,8 @@ All cost evaluations go through the shared :class:`~replication.optim.objective.
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 
 from replication.cloth import regression
@@ -93,6 +95,25 @@ def tau_groups(model, n_var):
     return [list(range(first, n_var)), *families, *[[i] for i in range(first, n_var)]]
 
 
+_FITS = {}   # id(trajectory) -> (weak reference, {(frames, model): regression.Fit})
+
+
+def engine_fit(trajectory, frames, model):
+    """The engine's fit of ``trajectory`` on ``frames``: computed once per trajectory
+    object, frames and model in a process (it uses no random numbers and no evaluations,
+    so every seed of a study on the same data shares it); forgotten with the trajectory.
+    """
+    key = id(trajectory)
+    ref, fits = _FITS.get(key, (None, None))
+    if ref is None or ref() is not trajectory:
+        fits = {}
+        _FITS[key] = (weakref.ref(trajectory, lambda _, key=key: _FITS.pop(key, None)), fits)
+    which = (np.asarray(frames).tobytes(), model)
+    if which not in fits:
+        fits[which] = regression.fit(regression.prepare(trajectory), frames, model=model)
+    return fits[which]
+
+
 def structured_identify(trajectory, objective, space, *, rng, settings):
     """Regression, tau scan and EA refinement (see the module docstring).
 
@@ -116,7 +137,7 @@ def structured_identify(trajectory, objective, space, *, rng, settings):
     frames = regression_frames(trajectory.n_frames, first=reg["first"], stride=reg["stride"])
     check(frames.size > 0, f"regression.first={reg['first']}: no frame of the "
                            f"{trajectory.n_frames}-frame data left for the regression")
-    fitted = regression.fit(regression.prepare(trajectory), frames, model=model)
+    fitted = engine_fit(trajectory, frames, model)
     reg_info = {"how": fitted.how, "tau": float(fitted.base.tau[0]),
                 "particle_frames_used": int(fitted.mask.sum())}
     if model == "18":

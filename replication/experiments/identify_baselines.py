@@ -23,26 +23,28 @@ from replication.progress import bar, progress
 from replication.workers import process_pool
 
 
-def _check_optimisers(optimisers):
+def _check_optimisers(optimisers, paper_ea):
     check(len(optimisers) > 0, "optimisers: expected at least one entry")
     for entry in optimisers:
         try:
-            check_solver(entry.get("kind"), _settings(entry, rest_spread=0.0))
+            check_solver(entry.get("kind"), _settings(entry, rest_spread=0.0,
+                                                      paper_ea=paper_ea))
         except InputError as error:
             raise InputError(f"optimisers: {entry.get('name')}: {error}") from None
 
 
-def _settings(entry, *, rest_spread):
-    """The solver settings of one ``optimisers`` entry (see :func:`solve`)."""
+def _settings(entry, *, rest_spread, paper_ea):
+    """The solver settings of one ``optimisers`` entry (see :func:`solve`); a ``paper_ea``
+    entry's ``ea`` holds only what it changes of the paper's rates ``paper_ea``."""
     kind = entry.get("kind")
     if kind == "paper_ea":
-        return {"ea": entry["ea"], "rest_spread": rest_spread}
+        return {"ea": {**paper_ea, **(entry.get("ea") or {})}, "rest_spread": rest_spread}
     if kind == "structured":
         return entry["settings"]
     return {key: entry.get(key) for key in ("algorithm", "options")}
 
 
-def run_optimiser(entry, case, *, budget, rng, seed, rest_spread):
+def run_optimiser(entry, case, *, budget, rng, seed, rest_spread, paper_ea):
     """One run of optimiser ``entry`` on ``case`` with ``budget`` evaluations.
 
     Returns the objective (its trace holds the run) and the optimiser's own info.
@@ -59,12 +61,14 @@ def run_optimiser(entry, case, *, budget, rng, seed, rest_spread):
         pymoo's seed.
     rest_spread : float
         Initial spread of rest lengths (paper EA).
+    paper_ea : dict
+        The paper EA's rates (the config's ``ea``), under a ``paper_ea`` entry's own ``ea``.
     """
     kind = entry["kind"]
     objective = problem.cloth_objective(case.cost, case.space, budget=budget,
                                         with_residuals=kind == "least_squares")
     info = solve(kind, objective, case.trajectory, case.space, rng=rng, seed=seed,
-                 settings=_settings(entry, rest_spread=rest_spread))
+                 settings=_settings(entry, rest_spread=rest_spread, paper_ea=paper_ea))
     kept = {"paper_ea": (), "structured": ("regression",), "least_squares": ("starts",),
             "pymoo": tuple(info)}[kind]
     return objective, {key: info[key] for key in kept}
@@ -152,7 +156,8 @@ def _one_run(task):
     rng = run_rng(config["seed"], case_index, opt_index, i, 1)
     start = time.perf_counter()
     objective, info = run_optimiser(entry, case, budget=budgets[-1], rng=rng, seed=seed,
-                                    rest_spread=config["init"]["rest_spread"])
+                                    rest_spread=config["init"]["rest_spread"],
+                                    paper_ea=config["ea"])
     record = score_run(objective, case, budgets, float(config["success_rtol"]))
     record["info"] = info
     record["run_seconds"] = time.perf_counter() - start
@@ -184,7 +189,7 @@ def baselines_study(config, out):
     """
     check_common(config)
     optimisers = config["optimisers"]
-    _check_optimisers(optimisers)
+    _check_optimisers(optimisers, config["ea"])
     budgets = sorted(int(b) for b in config["budgets"])
     check(budgets[0] >= 1, f"budgets={budgets}: expected positive evaluation counts")
     workers = int(config.get("workers", 1))

@@ -76,7 +76,8 @@ class Data(NamedTuple):
     mass: np.ndarray      # (P,)
     free: np.ndarray      # (P,) bool
     h: float
-    cache: dict           # quantities of the recorded frames computed once (state_frames)
+    cache: dict           # quantities of the recorded x computed once (state_frames);
+    #                       a Data with other positions comes from prepare(), not _replace
 
     @property
     def n_frames(self):

@@ -77,8 +77,8 @@ def flow_sensitivity(config, out):
     once; the numbers are those of running each reading alone."""
     with tempfile.TemporaryDirectory(prefix="flow-cache-") as cache:
         def accuracy(reading, folder):
-            reading["flow"] = {**(reading.get("flow") or {}), "cache_dir": cache}
-            return experiments.accuracy(reading, folder)
+            flow = {**(reading.get("flow") or {}), "cache_dir": cache}
+            return experiments.accuracy({**reading, "flow": flow}, folder)
 
         study = run_study(config, out, accuracy, flow_score)
     return _with_figure(study, config, ylabel="cases within the goal (best flow)",

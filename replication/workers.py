@@ -49,10 +49,34 @@ def shared_threads(environ, shares, cpus=None):
     return environ
 
 
+_KEPT = None  # {(workers, initializer): pool} while kept_pools() is open, else None
+
+
+@contextlib.contextmanager
+def kept_pools():
+    """Within this block, :func:`process_pool` hands out one pool per ``(workers,
+    initializer)`` and closes it only when the block ends. For studies that run an
+    experiment many times (a spawned worker costs about 2 s of CPU to start: imports and
+    compiled kernels); use it only where tasks depend on nothing a worker keeps between
+    them. Nested blocks use the outer one's pools. The thread variables of the first pool
+    stay set in this process's environment until the block ends."""
+    global _KEPT
+    if _KEPT is not None:
+        yield
+        return
+    try:
+        with contextlib.ExitStack() as stack:
+            _KEPT = {"stack": stack}
+            yield
+    finally:
+        _KEPT = None
+
+
 @contextlib.contextmanager
 def process_pool(workers, initializer=None):
     """A :class:`ProcessPoolExecutor` of ``workers`` spawned processes that share the CPUs
-    (see the module docstring).
+    (see the module docstring); inside :func:`kept_pools`, the pool kept for ``(workers,
+    initializer)``.
 
     Parameters
     ----------
@@ -60,6 +84,18 @@ def process_pool(workers, initializer=None):
     initializer : callable, optional
         Run once in each worker.
     """
+    if _KEPT is not None:
+        key = (workers, initializer)
+        if key not in _KEPT:
+            _KEPT[key] = _KEPT["stack"].enter_context(_new_pool(workers, initializer))
+        yield _KEPT[key]
+        return
+    with _new_pool(workers, initializer) as pool:
+        yield pool
+
+
+@contextlib.contextmanager
+def _new_pool(workers, initializer):
     saved = dict(os.environ)
     # workers start when tasks arrive and read the environment then: it stays set (only
     # for this process's children: its own libraries started long ago) until the pool ends

@@ -261,3 +261,27 @@ def test_worker_pools_share_the_cpus_and_restore_the_environment(monkeypatch):
     assert seen[0] == str(max(1, (os.cpu_count() or 1) // 2))
     assert seen[1] == "1"   # the user's value is kept
     assert "OPENBLAS_NUM_THREADS" not in os.environ
+
+
+def test_kept_pools_hand_out_one_pool_until_the_block_ends(monkeypatch):
+    import os
+
+    import pytest
+
+    from replication.workers import kept_pools, process_pool
+
+    monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
+    with kept_pools():
+        with process_pool(2) as first:
+            assert list(first.map(abs, [-1, -2])) == [1, 2]
+        with process_pool(2) as second:
+            assert second is first
+        with kept_pools(), process_pool(2) as nested:   # a nested block uses the outer pools
+            assert nested is first
+        with process_pool(1) as other:
+            assert other is not first
+    with pytest.raises(RuntimeError):   # closed when the block ended
+        first.submit(abs, -1)
+    assert "OPENBLAS_NUM_THREADS" not in os.environ
+    with process_pool(2) as fresh:
+        assert fresh is not first

@@ -24,6 +24,7 @@ from replication.experiments import motion as experiments
 from replication.experiments import segment as segment_experiments
 from replication.experiments.sensitivity import run_study
 from replication.figures import sensitivity as figure
+from replication.workers import kept_pools
 
 FLOW_METHODS = ("TV-L1 flow + rigid fit", "iLK flow + rigid fit")
 FAITHFUL = "faithful"
@@ -74,8 +75,9 @@ def flow_sensitivity(config, out):
     """Runner of ``motion_flow_sensitivity``. The readings share one flow cache
     (:func:`replication.motion.baselines.flow_field`): a flow field that depends neither on
     the reading's moving-region settings nor on the other method's options is computed
-    once; the numbers are those of running each reading alone."""
-    with tempfile.TemporaryDirectory(prefix="flow-cache-") as cache:
+    once; the numbers are those of running each reading alone. The readings also share
+    motion_accuracy's worker processes (a case depends only on its arguments)."""
+    with tempfile.TemporaryDirectory(prefix="flow-cache-") as cache, kept_pools():
         def accuracy(reading, folder):
             flow = {**(reading.get("flow") or {}), "cache_dir": cache}
             return experiments.accuracy({**reading, "flow": flow}, folder)

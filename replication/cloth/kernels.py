@@ -11,6 +11,15 @@ import numpy as np
 from numba import njit, prange
 
 
+@njit(cache=True, fastmath=False, nogil=True, inline="always")
+def add_scaled(array, i, scale, d0, d1, d2):
+    """``array[i] += scale * (d0, d1, d2)`` (``-scale`` subtracts: the same numbers, IEEE
+    negation being exact)."""
+    array[i, 0] += scale * d0
+    array[i, 1] += scale * d1
+    array[i, 2] += scale * d2
+
+
 @njit(cache=True, fastmath=False, nogil=True)
 def _step_into(x, v, rest, k, tau, extra, sa, sb, st, free, mass, gravity, damping, dt,
                force, corr, count, x_out, v_out):
@@ -47,12 +56,8 @@ def _predict_into(x, v, rest, k, extra, sa, sb, st, free, mass, gravity, damping
         length = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
         if length > 0.0:
             scale = k[t] * (length - rest[t]) / length
-            force[a, 0] += scale * d0
-            force[a, 1] += scale * d1
-            force[a, 2] += scale * d2
-            force[b, 0] -= scale * d0
-            force[b, 1] -= scale * d1
-            force[b, 2] -= scale * d2
+            add_scaled(force, a, scale, d0, d1, d2)
+            add_scaled(force, b, -scale, d0, d1, d2)
     # 1-2: v' = v + dt F / m (zero on pinned), x' = x + dt v'
     for p in range(n_particles):
         for c in range(3):
@@ -84,30 +89,37 @@ def _constrain_into(x, rest, tau, sa, sb, st, free, dt, corr, count, x_out, v_ou
         length = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
         limit = (1.0 + tau[t]) * rest[t]
         if length > limit:
-            excess = (length - limit) / length
-            free_a = free[a]
-            free_b = free[b]
-            if free_a and free_b:
-                share = 0.5 * excess
-                corr[a, 0] += share * d0
-                corr[a, 1] += share * d1
-                corr[a, 2] += share * d2
-                corr[b, 0] -= share * d0
-                corr[b, 1] -= share * d1
-                corr[b, 2] -= share * d2
-                count[a] += 1.0
-                count[b] += 1.0
-            elif free_a:
-                corr[a, 0] += excess * d0
-                corr[a, 1] += excess * d1
-                corr[a, 2] += excess * d2
-                count[a] += 1.0
-            elif free_b:
-                corr[b, 0] -= excess * d0
-                corr[b, 1] -= excess * d1
-                corr[b, 2] -= excess * d2
-                count[b] += 1.0
-    # 3 (end) and 4: mean of the proposals; v'' = (x'' - x) / dt, zero on pinned
+            propose_correction(a, b, d0, d1, d2, length, limit, free, corr, count)
+    _apply_into(x, free, dt, corr, count, x_out, v_out)
+
+
+@njit(cache=True, fastmath=False, nogil=True, inline="always")
+def propose_correction(a, b, d0, d1, d2, length, limit, free, corr, count):
+    """Add one over-stretched spring's proposals to ``corr`` and ``count`` (a Jacobi pass
+    of the deformation constraint): ``d = x_b - x_a``, ``length = |d| > limit``. A
+    Gauss-Seidel pass (numerics_variants.py) passes the positions as ``corr``."""
+    excess = (length - limit) / length
+    free_a = free[a]
+    free_b = free[b]
+    if free_a and free_b:
+        share = 0.5 * excess
+        add_scaled(corr, a, share, d0, d1, d2)
+        add_scaled(corr, b, -share, d0, d1, d2)
+        count[a] += 1.0
+        count[b] += 1.0
+    elif free_a:
+        add_scaled(corr, a, excess, d0, d1, d2)
+        count[a] += 1.0
+    elif free_b:
+        add_scaled(corr, b, -excess, d0, d1, d2)
+        count[b] += 1.0
+
+
+@njit(cache=True, fastmath=False, nogil=True)
+def _apply_into(x, free, dt, corr, count, x_out, v_out):
+    """Step 3 (end) and 4 on ``x_out``: the mean of the proposals added; ``v'' = (x'' - x)
+    / dt`` into ``v_out``, zero on pinned particles."""
+    n_particles = x.shape[0]
     for p in range(n_particles):
         if count[p] > 0.0:
             for c in range(3):
@@ -239,8 +251,10 @@ def one_step_errors(xs, vs, frames, rest, k, tau, extra, dtc, sa, sb, st, free, 
 def one_step_errors_tau(xs, vs, frames, rest, k, tau, extra, dtc, sa, sb, st, free, mass,
                         gravity, damping, dt):
     """:func:`one_step_errors` of one (rest, k) under many tau: ``e`` (B, F), equal bit for
-    bit to ``one_step_errors`` with ``rest`` and ``k`` repeated over the batch. The forces
-    and the Euler step (no tau in them) are computed once per frame, the constraint per tau.
+    bit to ``one_step_errors`` with ``rest`` and ``k`` repeated over the batch. The forces,
+    the Euler step and the springs of x' (no tau in them) are computed once per frame; per
+    tau, only the comparison with the limits and the proposals of the springs over them.
+    Every tau under which no spring is over its limit has the same error, computed once.
 
     Parameters
     ----------
@@ -256,6 +270,7 @@ def one_step_errors_tau(xs, vs, frames, rest, k, tau, extra, dtc, sa, sb, st, fr
     n_batch = tau.shape[0]
     n_frames = frames.shape[0]
     n_particles = xs.shape[1]
+    n_springs = sa.shape[0]
     errors = np.empty((n_batch, n_frames))
     shared_frame = extra.shape[1] == 1
     for job in prange(n_frames):
@@ -267,14 +282,39 @@ def one_step_errors_tau(xs, vs, frames, rest, k, tau, extra, dtc, sa, sb, st, fr
         x_pred = np.empty((n_particles, 3))
         x_hat = np.empty((n_particles, 3))
         v_hat = np.empty((n_particles, 3))
+        d = np.empty((n_springs, 3))
+        length = np.empty(n_springs)
+        limits = np.empty(rest.size)
         ef = np.int64(0) if shared_frame else f
         _predict_into(xs[t], vs[t], rest, k, extra[0, ef], sa, sb, st, free, mass, gravity,
                       damping, dt, force, x_pred)
+        # the springs of x' (the Jacobi pass reads x' alone), as _constrain_into computes them
+        for s in range(n_springs):
+            d[s, 0] = x_pred[sb[s], 0] - x_pred[sa[s], 0]
+            d[s, 1] = x_pred[sb[s], 1] - x_pred[sa[s], 1]
+            d[s, 2] = x_pred[sb[s], 2] - x_pred[sa[s], 2]
+            length[s] = np.sqrt(d[s, 0] * d[s, 0] + d[s, 1] * d[s, 1] + d[s, 2] * d[s, 2])
+        unconstrained, have_unconstrained = 0.0, False   # error when no spring is too long
         for i in range(n_batch):
+            for kind in range(limits.size):
+                limits[kind] = (1.0 + tau[i, kind]) * rest[kind]
+            corr[:] = 0.0
+            count[:] = 0.0
+            hits = 0
+            for s in range(n_springs):
+                limit = limits[st[s]]
+                if length[s] > limit:
+                    propose_correction(sa[s], sb[s], d[s, 0], d[s, 1], d[s, 2], length[s],
+                                       limit, free, corr, count)
+                    hits += 1
+            if hits == 0 and have_unconstrained:
+                errors[i, f] = unconstrained
+                continue
             x_hat[:] = x_pred
-            _constrain_into(xs[t], rest, tau[i], sa, sb, st, free, dt, corr, count, x_hat,
-                            v_hat)
+            _apply_into(xs[t], free, dt, corr, count, x_hat, v_hat)
             errors[i, f] = _error(x_hat, v_hat, xs[t + 1], vs[t + 1], dtc)
+            if hits == 0:
+                unconstrained, have_unconstrained = errors[i, f], True
     return errors
 
 

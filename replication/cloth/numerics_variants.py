@@ -33,6 +33,7 @@ from numba import njit, prange
 
 from replication.cloth.costs import ClothCost
 from replication.cloth.io import Trajectory
+from replication.cloth.kernels import add_scaled, propose_correction
 from replication.errors import check
 
 CONSTRAINTS = ("jacobi", "gauss_seidel")
@@ -124,47 +125,10 @@ def _project(x_out, rest, tau, sa, sb, st, free, corr, count, passes, gauss_seid
             d2 = x_out[b, 2] - x_out[a, 2]
             length = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
             limit = (1.0 + tau[t]) * rest[t]
-            if length > limit:
-                excess = (length - limit) / length
-                free_a = free[a]
-                free_b = free[b]
-                if gauss_seidel:
-                    if free_a and free_b:
-                        share = 0.5 * excess
-                        x_out[a, 0] += share * d0
-                        x_out[a, 1] += share * d1
-                        x_out[a, 2] += share * d2
-                        x_out[b, 0] -= share * d0
-                        x_out[b, 1] -= share * d1
-                        x_out[b, 2] -= share * d2
-                    elif free_a:
-                        x_out[a, 0] += excess * d0
-                        x_out[a, 1] += excess * d1
-                        x_out[a, 2] += excess * d2
-                    elif free_b:
-                        x_out[b, 0] -= excess * d0
-                        x_out[b, 1] -= excess * d1
-                        x_out[b, 2] -= excess * d2
-                elif free_a and free_b:
-                    share = 0.5 * excess
-                    corr[a, 0] += share * d0
-                    corr[a, 1] += share * d1
-                    corr[a, 2] += share * d2
-                    corr[b, 0] -= share * d0
-                    corr[b, 1] -= share * d1
-                    corr[b, 2] -= share * d2
-                    count[a] += 1.0
-                    count[b] += 1.0
-                elif free_a:
-                    corr[a, 0] += excess * d0
-                    corr[a, 1] += excess * d1
-                    corr[a, 2] += excess * d2
-                    count[a] += 1.0
-                elif free_b:
-                    corr[b, 0] -= excess * d0
-                    corr[b, 1] -= excess * d1
-                    corr[b, 2] -= excess * d2
-                    count[b] += 1.0
+            if length > limit and gauss_seidel:   # each spring moves its ends at once
+                propose_correction(a, b, d0, d1, d2, length, limit, free, x_out, count)
+            elif length > limit:   # Jacobi (the contract's): proposals, averaged after the pass
+                propose_correction(a, b, d0, d1, d2, length, limit, free, corr, count)
         if not gauss_seidel:
             for p in range(n_particles):
                 if count[p] > 0.0:
@@ -192,12 +156,8 @@ def _variant_step_into(x, v, rest, k, tau, sa, sb, st, free, mass, gravity, damp
         length = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
         if length > 0.0:
             scale = k[t] * (length - rest[t]) / length
-            force[a, 0] += scale * d0
-            force[a, 1] += scale * d1
-            force[a, 2] += scale * d2
-            force[b, 0] -= scale * d0
-            force[b, 1] -= scale * d1
-            force[b, 2] -= scale * d2
+            add_scaled(force, a, scale, d0, d1, d2)
+            add_scaled(force, b, -scale, d0, d1, d2)
     for p in range(n_particles):
         for c in range(3):
             if free[p]:

@@ -42,6 +42,12 @@ def start_state(x, t, dt, how):
     exact without noise); ``how="centred"``: value and slope of a quadratic least-squares
     fit to frames ``t-3..t+3`` (less noisy; frames after ``t`` are not scored).
     """
+    if how not in ("recorded", "centred"):
+        raise ValueError(f"how={how!r}: expected 'recorded' or 'centred'")
+    before, after = (1, 0) if how == "recorded" else (SMOOTH_HALF, SMOOTH_HALF)
+    if not before <= t < x.shape[0] - after:
+        raise ValueError(f"t={t}: a {how!r} start needs frames t-{before}..t+{after} of the "
+                         f"{x.shape[0]} frames")
     if how == "recorded":
         return x[t].copy(), (x[t] - x[t - 1]) / dt
     lags = np.arange(-SMOOTH_HALF, SMOOTH_HALF + 1) * dt

@@ -71,6 +71,9 @@ def window_sums(r, frames, window, mask=None):
     bool, the particle is in ``mask`` (F, P) at every frame of the window (all True
     without a mask): only then do the noise terms of the sum telescope.
     """
+    if int(window) < 2:   # one residual is e_{t+1} - 2 e_t + e_{t-1}: 6 sigma^2, not 4
+        raise ValueError(f"window={window}: expected at least 2 frames (sums of fewer do "
+                         "not telescope to four noise terms)")
     sums, starts, complete = [], [], []
     frames = np.asarray(frames)
     for idx in runs(frames):

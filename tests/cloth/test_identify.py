@@ -146,6 +146,9 @@ def test_identify_refuses_an_unknown_method_and_a_bad_algorithm(trajectory):
         identify(trajectory, method="simplex")
     with pytest.raises(InputError, match="algorithm='bfgs'"):
         identify(trajectory, method="pymoo", budget=10, settings={"algorithm": "bfgs"})
+    for method in ("pymoo", "least_squares"):   # they run until the budget is spent
+        with pytest.raises(InputError, match=f"method='{method}' runs until its budget"):
+            identify(trajectory, method=method)
 
 
 def test_structured_defaults_are_the_config_group():

@@ -226,6 +226,26 @@ def test_start_state_recorded_is_the_frame_and_its_backward_difference():
     assert np.all(x[6] != 0.0)
 
 
+def test_start_state_refuses_an_unknown_start_and_frames_outside_the_data():
+    x = np.zeros((12, 5, 3))
+    with pytest.raises(ValueError, match="how='smoothed': expected 'recorded' or 'centred'"):
+        gap.start_state(x, 6, 0.002, "smoothed")
+    gap.start_state(x, 1, 0.002, "recorded")
+    gap.start_state(x, 8, 0.002, "centred")
+    for t, how in ((0, "recorded"), (12, "recorded"), (2, "centred"), (9, "centred")):
+        with pytest.raises(ValueError, match=f"t={t}: a '{how}' start needs frames"):
+            gap.start_state(x, t, 0.002, how)
+
+
+def test_window_sums_refuse_a_window_of_one_frame():
+    """A single residual e_(t+1) - 2 e_t + e_(t-1) has variance 6 sigma^2: Q's noise scale
+    (four telescoped terms) holds from two frames on."""
+    r = np.zeros((10, 4, 3))
+    with pytest.raises(ValueError, match="window=1: expected at least 2 frames"):
+        res.window_sums(r, np.arange(10), 1)
+    assert res.window_sums(r, np.arange(10), 2)[0].shape == (5, 4, 3)
+
+
 def test_start_state_centred_is_the_seven_point_quadratic_fit():
     """how="centred": least-squares quadratic on t-3..t+3, i.e. the Savitzky-Golay weights
     (-2, 3, 6, 7, 6, 3, -2)/21 for the value and (-3..3)/(28 dt) for the slope; exact on a

@@ -131,6 +131,9 @@ def identify(trajectory, *, model="5", rng=None, budget=None, method="structured
     """
     if method not in SOLVERS:
         raise InputError(f"method={method!r}: expected one of {', '.join(SOLVERS)}")
+    if method in ("pymoo", "least_squares") and budget is None:
+        raise InputError(f"method={method!r} runs until its budget is spent: give budget= "
+                         "(cost evaluations)")
     rng = np.random.default_rng(rng)
     if settings is None:
         settings = (default_structured() if method == "structured"

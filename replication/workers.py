@@ -102,9 +102,15 @@ def _new_pool(workers, initializer):
     os.environ.update(shared_threads(os.environ, workers))
     try:
         context = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=workers, mp_context=context,
-                                 initializer=initializer) as pool:
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=context,
+                                   initializer=initializer)
+        try:
             yield pool
+        except BaseException:
+            # an error or Ctrl-C: the queued tasks are dropped, not run before it surfaces
+            pool.shutdown(wait=True, cancel_futures=True)
+            raise
+        pool.shutdown(wait=True)
     finally:
         os.environ.clear()
         os.environ.update(saved)

@@ -285,3 +285,29 @@ def test_kept_pools_hand_out_one_pool_until_the_block_ends(monkeypatch):
     assert "OPENBLAS_NUM_THREADS" not in os.environ
     with process_pool(2) as fresh:
         assert fresh is not first
+
+
+def _sleep_then(value):
+    import time
+
+    time.sleep(0.2)
+    return value
+
+
+def test_a_failing_pool_block_drops_its_queued_tasks():
+    """An error inside the block (or Ctrl-C) cancels the tasks still queued instead of
+    running them all before the error surfaces."""
+    import time
+
+    import pytest
+
+    from replication.workers import process_pool
+
+    start = time.perf_counter()
+    with pytest.raises(RuntimeError, match="stop"):
+        with process_pool(1) as pool:
+            futures = [pool.submit(_sleep_then, i) for i in range(40)]   # 8 s if all ran
+            assert futures[0].result() == 0
+            raise RuntimeError("stop")
+    assert sum(f.cancelled() for f in futures) > 30
+    assert time.perf_counter() - start < 6

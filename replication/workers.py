@@ -49,7 +49,7 @@ def shared_threads(environ, shares, cpus=None):
     return environ
 
 
-_KEPT = None  # {(workers, initializer): pool} while kept_pools() is open, else None
+_KEPT = None  # while kept_pools() is open: (its ExitStack, {(workers, initializer): pool})
 
 
 @contextlib.contextmanager
@@ -66,7 +66,7 @@ def kept_pools():
         return
     try:
         with contextlib.ExitStack() as stack:
-            _KEPT = {"stack": stack}
+            _KEPT = (stack, {})
             yield
     finally:
         _KEPT = None
@@ -85,10 +85,11 @@ def process_pool(workers, initializer=None):
         Run once in each worker.
     """
     if _KEPT is not None:
+        stack, pools = _KEPT
         key = (workers, initializer)
-        if key not in _KEPT:
-            _KEPT[key] = _KEPT["stack"].enter_context(_new_pool(workers, initializer))
-        yield _KEPT[key]
+        if key not in pools:
+            pools[key] = stack.enter_context(_new_pool(workers, initializer))
+        yield pools[key]
         return
     with _new_pool(workers, initializer) as pool:
         yield pool

@@ -2,8 +2,8 @@
 
 A ``KeyboardInterrupt`` (Ctrl-C) or the time limit's exception raised while numba's
 dispatcher is in Python (unpickling, type dispatch) surfaces as ``SystemError: ...
-returned a result with an exception set``, or worse. :func:`deferred` holds SIGINT and
-SIGALRM during a compiled call and delivers them right after it.
+returned a result with an exception set``, or worse. :func:`deferred` holds SIGINT,
+SIGTERM and SIGALRM during a compiled call and delivers them right after it.
 """
 
 from __future__ import annotations
@@ -12,14 +12,16 @@ import signal
 import threading
 from contextlib import contextmanager
 
-HELD = (signal.SIGINT, signal.SIGALRM)
+HELD = (signal.SIGINT, signal.SIGTERM, signal.SIGALRM)
 
 
 @contextmanager
 def deferred():
-    """Hold SIGINT and SIGALRM during the block; deliver them to their previous handlers
-    after it (SIGINT's default raises ``KeyboardInterrupt``). Outside the main thread the
-    block runs unchanged."""
+    """Hold SIGINT, SIGTERM and SIGALRM during the block (a handler that raises inside a
+    compiled call leaves it with an exception set: a traceback, not the handler's error);
+    deliver them to their previous handlers after it (SIGINT's default raises
+    ``KeyboardInterrupt``, SIGTERM's default ends the process). Outside the main thread
+    the block runs unchanged."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -40,3 +42,5 @@ def deferred():
             handler(signum, None)
         elif signum == signal.SIGINT:
             raise KeyboardInterrupt
+        elif signum == signal.SIGTERM and handler == signal.SIG_DFL:
+            signal.raise_signal(signum)

@@ -460,7 +460,8 @@ def test_replicate_all_passes_force_and_hashes_inputs():
 
 
 # ---------------------------------------------------------------- Ctrl-C (a real process)
-def test_ctrl_c_during_the_sweep_exits_130_and_writes_nothing(tmp_path):
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_ctrl_c_during_the_sweep_exits_130_and_writes_nothing(tmp_path, signum):
     from scipy import ndimage
 
     rng = np.random.default_rng(0)
@@ -477,7 +478,7 @@ def test_ctrl_c_during_the_sweep_exits_130_and_writes_nothing(tmp_path):
     while not (work / "out").exists() and time.monotonic() < deadline:
         time.sleep(0.1)
     time.sleep(2.0)  # inside the sweep
-    process.send_signal(signal.SIGINT)
+    process.send_signal(signum)
     _, err = process.communicate(timeout=60)
     assert process.returncode == 130, err
     assert "Traceback" not in err and "error: interrupted" in err

@@ -50,10 +50,13 @@ def cost_frames(kind, n_frames, *, frame=SMALL_FRAME, start=FULL_START, window=F
     else:
         raise InputError(f"cost.kind={kind!r}: expected 'small' or 'full'")
     if frames.min() < 0 or frames.max() > n_frames - 2:
+        setting = (f"cost.frame={frame}" if kind == "small"
+                   else f"cost.start={start}, cost.window={window}")
         raise InputError(
-            f"cost frame index t={int(frames.max() if frames.max() > 0 else frames.min())} "
-            f"is outside the data: t and t+1 must be frames of the {n_frames}-frame file "
-            f"(0 <= t <= {n_frames - 2})"
+            f"{setting} ({kind} cost): frame index "
+            f"t={int(frames.max() if frames.max() > 0 else frames.min())} is outside the "
+            f"data: t and t+1 must be frames of the {n_frames}-frame file "
+            f"(0 <= t <= {n_frames - 2}); set {setting.split('=')[0]}= for shorter data"
         )
     return frames.astype(np.int64)
 
@@ -161,5 +164,9 @@ def make_cost(trajectory, kind="small", *, frame=SMALL_FRAME, start=FULL_START,
     ClothCost
         Callable: ``cost(params) -> (pop,)``.
     """
-    frames = cost_frames(kind, trajectory.n_frames, frame=frame, start=start, window=window)
+    try:
+        frames = cost_frames(kind, trajectory.n_frames, frame=frame, start=start,
+                             window=window)
+    except InputError as error:
+        raise InputError(f"{trajectory.source}: {error}") from None
     return ClothCost(trajectory, frames, dtc=dtc, h=h)

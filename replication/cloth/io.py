@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from replication.cloth.model import Scene, make_scene
+from replication.cloth.model import PARAM_NAMES_5, Scene, make_scene
 from replication.errors import InputError
 
 REQUIRED = ("positions", "dt", "mass", "gravity", "pinned")
@@ -100,6 +100,11 @@ def load_npz(path, expected):
     """
     reason = None
     try:
+        with open(path, "rb") as handle:
+            head = handle.read(6)
+        if head[:4] not in (b"PK\x03\x04", b"PK\x05\x06") and head != b"\x93NUMPY":
+            # numpy takes any other file for a pickle and suggests allow_pickle=True
+            raise ValueError(f"it starts with {head!r}, not with a zip archive's b'PK'")
         loaded = np.load(path, allow_pickle=False)
         if not isinstance(loaded, np.lib.npyio.NpzFile):
             reason = f"a single {type(loaded).__name__} (.npy data), not an .npz archive"
@@ -233,10 +238,26 @@ def read_trajectory(path):
             _fail(path, "meta", f"invalid JSON ({error.msg})", "a JSON string")
         if not isinstance(meta, dict):
             _fail(path, "meta", f"JSON {type(meta).__name__}", "a JSON object")
+        _check_truth(path, meta.get("true_params"))
 
     return Trajectory(positions=positions, dt=float(dt), mass=mass, gravity=gravity,
                       pinned=pinned, damping=damping, velocities=velocities, meta=meta,
                       source=str(path))
+
+
+def _check_truth(path, truth):
+    """``meta.true_params``, when present, scores answers: each of the 5-parameter model's
+    values must be a positive finite number (other keys are free)."""
+    if truth is None:
+        return
+    expected = "true_params: {" + ", ".join(PARAM_NAMES_5) + "} as positive numbers"
+    if not isinstance(truth, dict):
+        _fail(path, "meta", f"true_params of JSON type {type(truth).__name__}", expected)
+    for name in PARAM_NAMES_5:
+        value = truth.get(name)
+        if (isinstance(value, bool) or not isinstance(value, (int, float))
+                or not np.isfinite(value) or value <= 0):
+            _fail(path, "meta", f"true_params.{name}={json.dumps(value)}", expected)
 
 
 def write_npz_deterministic(path, arrays):

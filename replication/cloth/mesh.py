@@ -14,7 +14,6 @@ FAMILY_OF_TYPE = np.array([0, 0, 1, 1, 2, 2])
 
 DEFAULT_N = 17
 DEFAULT_SIDE = 1.5
-DEFAULT_PINNED = ((0, 0), (0, DEFAULT_N - 1))
 
 
 def spacing(n=DEFAULT_N, side=DEFAULT_SIDE):

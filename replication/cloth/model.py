@@ -12,8 +12,9 @@ from typing import NamedTuple
 import numpy as np
 
 from replication.cloth import kernels
+from replication.errors import InputError
 from replication.cloth.mesh import (
-    DEFAULT_N, DEFAULT_PINNED, DEFAULT_SIDE, FAMILY_OF_TYPE, N_TYPES, flat_rest_positions,
+    DEFAULT_N, DEFAULT_SIDE, FAMILY_OF_TYPE, N_TYPES, flat_rest_positions,
     reference_rest_lengths, spacing, springs,
 )
 
@@ -74,8 +75,13 @@ def make_scene(n=DEFAULT_N, *, dt=CONTRACT_DT, mass=CONTRACT_MASS, gravity=CONTR
         ``(i, j)`` of pinned particles; default the contract's two top corners.
     """
     if pinned is None:
-        pinned = ((0, 0), (0, n - 1)) if n != DEFAULT_N else DEFAULT_PINNED
+        pinned = ((0, 0), (0, n - 1))
     pinned = np.asarray(pinned, dtype=np.int64).reshape(-1, 2)
+    outside = np.any((pinned < 0) | (pinned >= n), axis=1)
+    if np.any(outside):
+        i, j = pinned[outside][0]
+        raise InputError(f"pinned: ({i}, {j}) is outside the {n}x{n} mesh; expected "
+                         f"(i, j) in 0..{n - 1} (null: the top corners (0, 0), (0, {n - 1}))")
     mass = np.broadcast_to(np.asarray(mass, dtype=float), (n, n)).reshape(n * n).copy()
     free = np.ones(n * n, dtype=np.bool_)
     free[pinned[:, 0] * n + pinned[:, 1]] = False

@@ -17,42 +17,13 @@ import numpy as np
 
 from replication.cloth import regression
 from replication.cloth.geometry import normals
-
-# Floor of the noise standard deviation (units of h): on noise-free data the residuals of
-# a right model are round-off, and structure is measured against this floor instead.
-SIGMA_FLOOR_H = 1e-7
+from replication.cloth.noise import SIGMA_FLOOR_H, noise_sigma, runs  # noqa: F401 (re-exported)
 
 
 def residuals(data, fit, frames):
     """One-step residuals ``x_{t+1} - x^_{t+1}`` (F, P, 3) of a fit, zero on pinned
     particles."""
     return regression.residuals(data, fit.base, fit.terms, frames)
-
-
-def runs(frames):
-    """Split sorted frames into runs of consecutive values: list of index arrays."""
-    frames = np.asarray(frames)
-    breaks = np.flatnonzero(np.diff(frames) != 1) + 1
-    return np.split(np.arange(frames.size), breaks)
-
-
-def noise_sigma(r, frames, free, mask=None):
-    """Position-noise standard deviation from lag-0/lag-1 autocovariances of residuals
-    (over particle-frames in ``mask`` (F, P) when given)."""
-    use = np.ones(r.shape[:2], dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
-    use = use & free[None, :]
-    g0, g1, count0, count1 = 0.0, 0.0, 0, 0
-    for idx in runs(frames):
-        block, keep = r[idx], use[idx]
-        g0 += float(np.sum(block[keep] ** 2))
-        count0 += 3 * int(keep.sum())
-        if len(idx) > 1:
-            both = keep[1:] & keep[:-1]
-            g1 += float(np.sum((block[1:] * block[:-1])[both]))
-            count1 += 3 * int(both.sum())
-    gamma0 = g0 / max(count0, 1)
-    gamma1 = g1 / max(count1, 1)
-    return float(np.sqrt(max(gamma0 - gamma1, 0.0) / 10.0))
 
 
 def patch_labels(n, patch):
@@ -105,19 +76,27 @@ def structure(r, frames, free, n, *, window=10, patch=4, directions=None, floor=
     mask : (F, P) bool, optional
         Particle-frames outside the deformation constraint: a window sum counts only where
         the particle is in the mask at every frame of the window. The constraint's
-        residuals are sensitive to tiny errors of ``tau`` and would dominate ``Q``.
+        residuals are sensitive to tiny errors of ``tau`` and would dominate ``Q``. An
+        empty mask, or one that no particle fills for a whole window, is not used.
 
     Returns
     -------
-    dict with ``sigma``, ``Q`` (the larger of ``Q_patch``, over patches of ``patch x patch``
+    dict with ``sigma``, ``mask_dropped`` (the mask was not used, see ``mask``), ``Q`` (the
+    larger of ``Q_patch``, over patches of ``patch x patch``
     particles, and ``Q_sheet``, over the whole sheet), ``Q_by_window`` (W,), ``Q_by_patch``
     (patches,),
     ``Q_by_component`` {x, y, z}, and ``Q_normal``/``Q_tangential`` when ``directions``.
     """
     if mask is not None and not np.any(mask):
         mask = None   # a fit through the constraint has no mask: use everything
-    sigma = max(noise_sigma(r, frames, free, mask) if sigma is None else sigma, floor)
     sums, starts, complete = window_sums(r, frames, window, mask)
+    mask_dropped = mask is not None and not np.any(complete[:, free])
+    if mask_dropped:
+        # no particle stays in the mask for a whole window (a rough fit's mask is patchy):
+        # Q would be measured on nothing and read 0; use everything instead
+        mask = None
+        sums, starts, complete = window_sums(r, frames, window)
+    sigma = max(noise_sigma(r, frames, free, mask) if sigma is None else sigma, floor)
     labels = patch_labels(n, patch)[free]
     n_patch = labels.max() + 1
     complete = complete[:, free]
@@ -149,6 +128,7 @@ def structure(r, frames, free, n, *, window=10, patch=4, directions=None, floor=
     q_sheet = (float(np.mean(sheet[used] ** 2 / (n_complete[used, None] * var)))
                if np.any(used) else 0.0)
     out = {"sigma": sigma, "Q": max(q_patch, q_sheet), "Q_patch": q_patch, "Q_sheet": q_sheet,
+           "mask_dropped": bool(mask_dropped),
            "Q_by_window": mean_over(q, weight, (1, 2)).tolist() if has else [],
            "window_starts": starts.tolist(),
            "Q_by_patch": mean_over(q, weight, (0, 2)).tolist() if has else [],

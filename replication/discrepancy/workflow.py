@@ -26,6 +26,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from replication.cloth import regression
+from replication.cloth.mesh import type_lengths
 from replication.discrepancy import effects as fx
 from replication.discrepancy.gap import STARTS, one_step_error, rollout_error, split_frames
 from replication.discrepancy.naming import score_candidates
@@ -327,6 +328,50 @@ def _standard_errors(fit, name, model):
     return None
 
 
+PLAUSIBLE_REST = (0.67, 1.5)   # base rest length / observed mean length of its type
+MIN_SHRINK = 1.5               # held-out gap before / after the named effects
+MAX_BODY_FORCE = 0.5           # a named body force above this share of the weight
+
+
+def _warnings(data, base_fit, located, named_effects, gap_before, gap_after):
+    """Lines a user should read before the verdict: a base fit that cannot be right, a
+    structure measured without the constraint mask, named effects that shrink the
+    held-out gap little, a body force that looks like a unit or time-step mistake."""
+    warnings = []
+    if located.get("mask_dropped"):
+        warnings.append(
+            "no particle stays clear of the deformation constraint for a whole window of "
+            "the base fit, so the structure Q was measured on every particle, those the "
+            "constraint moves included; where the base tau is rough that reads as "
+            "structure: the verdict is unreliable (data too noisy or too short)")
+    observed = type_lengths(data.x, data.ops.n)
+    ratios = base_fit.base.rest / np.where(observed > 0, observed, np.nan)
+    odd = [f"rest length of type {t} is {ratio:.3g} x its observed length"
+           for t, ratio in enumerate(ratios)
+           if not PLAUSIBLE_REST[0] <= ratio <= PLAUSIBLE_REST[1]]
+    odd += [f"stiffness of type {t} is {k:.3g}" for t, k in enumerate(base_fit.base.k)
+            if not k > 0]
+    if odd:
+        warnings.append("the base model does not fit these data plausibly ("
+                        + "; ".join(odd) + "): check the file (units, dt, frame order, "
+                        "velocities) before reading the verdict")
+    if named_effects and gap_after > 0 and gap_before / gap_after < MIN_SHRINK:
+        warnings.append(
+            f"the named effect(s) shrink the held-out rollout gap only "
+            f"{gap_before / gap_after:.3g}-fold ({gap_before:.3g} -> {gap_after:.3g} h): "
+            "treat the name(s) as tentative; an effect outside the library may be acting")
+    for effect in named_effects:
+        if effect["name"] == "body_force":
+            force = np.array([effect["parameters"]["coefficients"][f"f_{c}"] for c in "xyz"])
+            share = float(np.linalg.norm(force)
+                          / (np.mean(data.mass) * np.linalg.norm(data.scene.gravity)))
+            if share > MAX_BODY_FORCE:
+                warnings.append(
+                    f"the named body force is {share:.3g} x the weight: a force that size "
+                    "more often means a wrong dt or positions in other units than gravity's")
+    return warnings
+
+
 def _describe(effect_fit, name, evidence, model):
     effect = fx.get_effect(name)
     theta = effect_fit.term(name)
@@ -381,7 +426,9 @@ def analyse(trajectory, config=None, *, rng=None):
     if not held:
         needed = settings["holdout_block"] * settings["holdout_every"]
         raise InputError(f"{trajectory.source}: field 'positions': found {data.n_frames} "
-                         f"frames; expected at least {needed} for one held-out block")
+                         f"frames; expected at least {needed} for one held-out block of "
+                         f"discrepancy.holdout_block={settings['holdout_block']} in every "
+                         f"discrepancy.holdout_every={settings['holdout_every']}")
     model = settings["model"]
     frames = regression.usable_frames(train, data.n_frames)
     base_fit = regression.fit(data, train, model=model)
@@ -465,5 +512,7 @@ def analyse(trajectory, config=None, *, rng=None):
         "candidates_by_step": rounds,
         "tried": tried,
         "dropped": dropped,
+        "warnings": _warnings(data, base_fit, located, named_effects,
+                              gap_before["rollout"], gap_current["rollout"]),
         "settings": settings,
     }

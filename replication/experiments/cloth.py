@@ -10,10 +10,10 @@ from pathlib import Path
 
 import numpy as np
 
-from replication.cloth.costs import make_cost
+from replication.cloth.costs import cost_frames, make_cost
 from replication.cloth.io import read_trajectory, trajectory_from_rollout, write_trajectory
 from replication.cloth.model import make_scene, params_from_vectors, reference_vector, simulate
-from replication.errors import check
+from replication.errors import InputError, check
 from replication.progress import progress
 from replication.provenance import file_sha256
 from replication.results import write_json_atomic
@@ -31,9 +31,12 @@ def reference_file(data_dir, tau):
 
 
 def _scene_from_config(scene_cfg):
-    return make_scene(scene_cfg["n"], dt=scene_cfg["dt"], mass=scene_cfg["mass"],
-                      gravity=scene_cfg["gravity"], damping=scene_cfg["damping"],
-                      pinned=scene_cfg["pinned"])
+    try:
+        return make_scene(scene_cfg["n"], dt=scene_cfg["dt"], mass=scene_cfg["mass"],
+                          gravity=scene_cfg["gravity"], damping=scene_cfg["damping"],
+                          pinned=scene_cfg.get("pinned"))
+    except InputError as error:
+        raise InputError(f"scene.{error}") from None
 
 
 def reference_runs(config, out):
@@ -51,6 +54,8 @@ def reference_runs(config, out):
     check(len(config["taus"]) > 0, "taus: expected at least one value")
     data_dir = Path(config["data_dir"])
     scene = _scene_from_config(scene_cfg)
+    for kind in ("small", "full"):   # the costs at the truth need their frames in the runs
+        cost_frames(kind, n_steps + 1, **config["cost"])
     files, costs = {}, {}
     for tau in config["taus"]:
         check(tau > 0, f"taus: {tau}: expected tau > 0")

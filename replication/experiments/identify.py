@@ -17,7 +17,7 @@ from replication.cloth.costs import structural_length
 from replication.cloth.identify import EASettings, PaperEA, identify, problem
 from replication.cloth.io import read_trajectory
 from replication.errors import InputError, check
-from replication.experiments.identify_common import data_files, run_rng
+from replication.experiments.identify_common import check_common, data_files, run_rng
 from replication.progress import bar, mode_for, progress
 
 METHODS = ("structured", "paper_ea")
@@ -104,6 +104,14 @@ def _identification_result(config, label, trajectory, best, cost, info):
               "n_evals": info["n_evals"], "cost_used": config["cost"]}
     result["warnings"] = bound_warnings(best, problem.search_space(
         trajectory, config["bounds"], model=model), names)
+    result["diagnostics"] = info["diagnostics"]
+    result["warnings"] += problem.diagnostic_warnings(info["diagnostics"], best, names)
+    budget = config.get("budget")
+    if (budget is not None and info["n_evals"] >= int(budget)
+            and config["method"] in METHODS):
+        result["warnings"].append(
+            f"budget={budget}: every evaluation was spent, so {config['method']} stopped "
+            "there, not at its own end; a larger budget may change the answer")
     if truth is not None:
         errors = problem.relative_errors(best, truth)
         result["relative_errors"] = dict(zip(names, errors.tolist()))
@@ -121,6 +129,7 @@ def identify_run(config, out):
         The resolved ``cloth_identify`` config (plain dict, docs/experiments.md) and the run's
         output folder.
     """
+    check_common(config)
     label, _, trajectory = _single_trajectory(config)
     best, cost, info = _identify(config, trajectory, run_rng(config["seed"]))
     progress(f"identified {label}: cost {cost:.3g} after {info['n_evals']} evaluations")
@@ -137,6 +146,7 @@ def ci_check(config, out):
         The resolved ``cloth_ci`` config (plain dict, docs/experiments.md) and the run's
         output folder.
     """
+    check_common(config)
     label, path, trajectory = _single_trajectory(config)
     model = str(config["model"])
     names = problem.PARAM_NAMES_18 if model == "18" else problem.PARAM_NAMES_5
@@ -192,6 +202,7 @@ def noise_study(config, out):
         The resolved ``cloth_identify_noise`` config (plain dict, docs/experiments.md) and the run's
         output folder.
     """
+    check_common(config)
     label, _, clean = _single_trajectory(config)
     model = str(config["model"])
     truth = problem.truth_vector(clean, model)

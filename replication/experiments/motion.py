@@ -110,6 +110,21 @@ def _check_settings(settings):
     for key in ("relative_threshold", "refine_threshold"):
         check(0 < settings[key] < 1, f"{key}={settings[key]}: expected a fraction in (0, 1)")
     check(settings["cell"] > 0, f"cell={settings['cell']}: expected > 0 pixels")
+    check(settings["margin"] >= 0, f"method.margin={settings['margin']}: expected >= 0 "
+                                   "pixels (the accumulator covers the image and more)")
+
+
+def check_grid(shape, settings):
+    """Refuse an accumulator (frame ``shape``, ``method.cell``, ``method.margin``) with more
+    cells than ``limits.max_frame_pixels``: every omega fills one such array per thread."""
+    from replication.guard import LIMITS
+
+    grid = irc.image_grid(shape, margin=settings["margin"], cell=settings["cell"])
+    limit = LIMITS["max_frame_pixels"]
+    check(grid.nx * grid.ny <= limit,
+          f"method.cell={settings['cell']:g}, method.margin={settings['margin']:g}: an "
+          f"accumulator of {grid.ny} x {grid.nx} cells for {shape[0]} x {shape[1]} frames; "
+          f"expected at most limits.max_frame_pixels={limit:g} cells (a larger cell)")
 
 
 def _truth_of(sequence):

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from replication.errors import InputError
-from replication.experiments.motion import _check_settings, _load, _truth_of
+from replication.experiments.motion import _check_settings, _load, _truth_of, check_grid
 from replication.motion import baselines, irc, pyramid, single
 from replication.motion.derivatives import sequence_derivatives
 from replication.progress import bar, progress
@@ -30,9 +30,15 @@ def check_motion(sequence):
                          "are identical; expected a sequence in which something turns")
 
 
-def answer_warnings(paper, refined, settings):
-    """Warnings on a rotation estimate: the best peak at the edge of the omega sweep, a
-    refinement on too few pixels, a refined omega outside the sweep."""
+# the refined centre this many frame sizes away: a translation, not a rotation in view
+FAR_CENTRE = 10.0
+
+
+def answer_warnings(paper, refined, settings, grid=None, shape=None):
+    """Warnings on a rotation estimate: the best peak at the edge of the omega sweep or of
+    the accumulator ``grid``, a refinement on too few pixels, a refined omega outside the
+    sweep, a refined centre so far from the frames (``shape``) that the motion is a
+    translation."""
     low, high = float(settings["omega_min"]), float(settings["omega_max"])
     step = (high - low) / max(int(settings["omega_count"]) - 1, 1)
     warnings = []
@@ -40,6 +46,22 @@ def answer_warnings(paper, refined, settings):
         warnings.append(f"irc.omega={paper['omega']:.4g} is at the edge of the sweep "
                         f"[{low:g}, {high:g}]: the rotation may lie outside it (widen "
                         "method.omega_min/omega_max)")
+    if grid is not None:
+        right = grid.x0 + (grid.nx - 1) * grid.cell
+        bottom = grid.y0 + (grid.ny - 1) * grid.cell
+        if (min(abs(paper["xi"] - grid.x0), abs(paper["xi"] - right)) < grid.cell / 2
+                or min(abs(paper["eta"] - grid.y0), abs(paper["eta"] - bottom)) < grid.cell / 2):
+            warnings.append(f"irc centre ({paper['xi']:.4g}, {paper['eta']:.4g}) is at the "
+                            "edge of the accumulator: the centre may lie outside it (widen "
+                            "method.margin)")
+    if shape is not None and np.all(np.isfinite([refined["xi"], refined["eta"]])):
+        height, width = shape
+        away = float(np.hypot(refined["xi"] - (width - 1) / 2, refined["eta"] - (height - 1) / 2))
+        if away > FAR_CENTRE * max(height, width):
+            warnings.append(f"irc_refined centre is {away:.3g} px from the frames with "
+                            f"omega {refined['omega']:.3g}: the motion looks like a "
+                            "translation, not a rotation about a point in or near view; "
+                            "irc (the best peak) is then meaningless")
     if refined.get("pixels", 0) < MIN_REFINE_PIXELS:
         warnings.append(f"irc_refined: refinement on {refined.get('pixels', 0)} pixel(s), "
                         f"fewer than {MIN_REFINE_PIXELS}: the refined estimate is not reliable")
@@ -166,6 +188,8 @@ def single_rotation(config, out):
     progress(f"{sequence.source}: {sequence.frames.shape[0]} frames of "
              f"{sequence.frames.shape[1]} x {sequence.frames.shape[2]}")
     check_motion(sequence)
+    if settings["accumulation"] == "exact":
+        check_grid(sequence.frames.shape[1:], settings)
     single.warm_up()
     found = (single.find_rotation(sequence.frames, settings)
              if settings["accumulation"] == "pyramid"
@@ -176,7 +200,10 @@ def single_rotation(config, out):
         "data": sequence.source,
         "irc": paper,
         "irc_refined": refined,
-        "warnings": answer_warnings(paper, refined, settings),
+        "warnings": answer_warnings(
+            paper, refined, settings,
+            found["grid"] if settings["accumulation"] == "exact" else None,
+            sequence.frames.shape[1:]),
         "seconds": found["seconds"],
         "pixels_used": int(len(found["pixels"])),
         "region_pixels": int(np.count_nonzero(found["region"])),

@@ -29,7 +29,8 @@ def plot_where(result, out_dir):
     axes[0].set_xlabel("j")
     axes[0].set_ylabel("i")
     fig.colorbar(image, ax=axes[0])
-    axes[1].semilogy(where["window_starts"], np.maximum(where["Q_by_window"], 1e-3), "o-")
+    if len(where["Q_by_window"]) == len(where["window_starts"]) > 0:
+        axes[1].semilogy(where["window_starts"], np.maximum(where["Q_by_window"], 1e-3), "o-")
     axes[1].axhline(result["settings"]["q_threshold"], color="k", ls="--", label="threshold")
     axes[1].set_xlabel("frame")
     axes[1].set_ylabel("Q (1 = noise)")

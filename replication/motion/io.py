@@ -233,6 +233,11 @@ def _check_frames(path, frames):
         if np.ptp(frame) == 0:
             _fail(path, f"frame {t}", f"a constant image (all {frame.flat[0]:g})",
                   "an image with some contrast (the method needs image gradients)")
+    # squared gradients of values this small (large) underflow (overflow) in float64
+    contrast = float(np.max([np.ptp(frame) for frame in frames]))
+    if not 1e-100 <= contrast <= 1e100:
+        _fail(path, "frames", f"intensities varying by {contrast:.3g}",
+              "a contrast from 1e-100 to 1e100 (rescale the frames, e.g. to 0..1)")
 
 
 def _read_truth_file(path):

@@ -160,6 +160,22 @@ def test_structure_counts_window_sums_only_where_the_mask_holds_throughout():
     assert res.structure(r, frames, _free(), N)["Q"] > 5
 
 
+def test_structure_measures_everything_when_no_particle_fills_a_window_of_the_mask():
+    """A patchy mask (every particle out at some frame of every window) leaves no window
+    sum: Q is measured without the mask and says so, instead of reading 0."""
+    rng = np.random.default_rng(5)
+    n_frames = 200
+    frames = np.arange(n_frames)
+    r = _model_noise(rng, n_frames) + _slow(n_frames, 20 * SIGMA)
+    mask = np.ones((n_frames, N * N), dtype=bool)
+    mask[::5] = False     # windows of 10 frames: none complete
+    patchy = res.structure(r, frames, _free(), N, mask=mask)
+    plain = res.structure(r, frames, _free(), N)
+    assert patchy["mask_dropped"] and not plain["mask_dropped"]
+    assert patchy["Q"] == plain["Q"] > 5
+    assert len(patchy["Q_by_window"]) == len(patchy["window_starts"]) > 0
+
+
 def test_structure_uses_the_floor_and_a_given_sigma():
     """Exact zeros: sigma is the floor and Q is 0; a given sigma replaces the estimate."""
     n_frames = 40

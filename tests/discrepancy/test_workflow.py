@@ -42,6 +42,32 @@ def test_clean_data_gets_no_name(clean_result):
     assert 0.7e-4 < clean_result["where"]["noise_sigma_h"] < 1.3e-4
 
 
+def test_clean_data_get_no_warning(clean_result):
+    assert clean_result["warnings"] == []
+
+
+def test_an_implausible_base_fit_a_small_gap_shrink_and_a_huge_body_force_are_warned(
+        clean_trajectory):
+    from types import SimpleNamespace
+
+    from replication.cloth import regression
+    from replication.discrepancy.workflow import _warnings
+
+    data = regression.prepare(clean_trajectory)
+    fit = regression.fit(data, np.arange(5, 90, 5))
+    located = {"mask_dropped": False}
+    assert _warnings(data, fit, located, [], 1.0, 1.0) == []
+    broken = SimpleNamespace(base=fit.base._replace(rest=fit.base.rest * 5))
+    assert _warnings(data, broken, located, [], 1.0, 1.0)[0].startswith(
+        "the base model does not fit these data plausibly (rest length of type 0 is 4.98")
+    weight = 0.001 * 9.81
+    force = {"name": "body_force", "parameters": {"coefficients": {
+        "f_x": 0.0, "f_y": 0.0, "f_z": 0.9 * weight}}}
+    found = _warnings(data, fit, {"mask_dropped": True}, [force], 1.0, 0.9)
+    assert [w.split(" ")[:3] for w in found] == [
+        ["no", "particle", "stays"], ["the", "named", "effect(s)"], ["the", "named", "body"]]
+
+
 def test_planted_drag_is_named_with_its_coefficient():
     spec = _spec("quadratic_drag", {"per_mass": [2.0]})
     result = analyse(gen.make_trajectory(spec, N_FRAMES), {"n_subsamples": 10}, rng=0)

@@ -77,3 +77,34 @@ def test_single_rotation_refuses_bad_settings(tmp_path, method, message):
     with pytest.raises(InputError, match=re.escape(message)):
         single_rotation(config, tmp_path / "out")
     assert not (tmp_path / "out").exists()
+
+
+def test_answer_warnings_flag_a_translation_and_a_centre_at_the_accumulator_edge():
+    from replication.experiments.motion_single import answer_warnings
+    from replication.motion import irc, single
+
+    settings = single.settings_from(None)
+    grid = irc.image_grid((64, 64))
+    inside = {"xi": 30.0, "eta": 20.0, "omega": 0.02, "pixels": 500}
+    assert answer_warnings(inside, inside, settings, grid, (64, 64)) == []
+    edge = dict(inside, eta=63.0)
+    assert any("edge of the accumulator" in w
+               for w in answer_warnings(edge, inside, settings, grid, (64, 64)))
+    far = dict(inside, xi=32.0, eta=-1e7, omega=1e-7)
+    assert any("looks like a translation" in w
+               for w in answer_warnings(inside, far, settings, grid, (64, 64)))
+
+
+@pytest.mark.parametrize("override, message", [
+    ({"margin": -10.0}, "method.margin=-10.0: expected >= 0"),
+    ({"cell": 0.01}, "accumulator of 6301 x 6301 cells"),
+])
+def test_accumulator_settings_that_cannot_work_are_refused(override, message):
+    from replication.errors import InputError
+    from replication.experiments.motion import _check_settings, check_grid
+    from replication.motion import single
+
+    settings = single.settings_from(override)
+    with pytest.raises(InputError, match=message):
+        _check_settings(settings)
+        check_grid((64, 64), settings)

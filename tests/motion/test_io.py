@@ -96,6 +96,15 @@ def test_refuses_constant_frame(tmp_path):
         read_sequence(tmp_path / "c.npz")
 
 
+@pytest.mark.parametrize("scale", [1e-160, 1e160])
+def test_refuses_intensities_whose_squared_gradients_underflow_or_overflow(tmp_path, scale):
+    np.savez(tmp_path / "s.npz", frames=frames_like() * scale)
+    with pytest.raises(InputError, match="expected a contrast from 1e-100 to 1e100"):
+        read_sequence(tmp_path / "s.npz")
+    np.savez(tmp_path / "ok.npz", frames=frames_like() * scale ** 0.5)
+    assert read_sequence(tmp_path / "ok.npz").frames.shape[0] >= 2
+
+
 def test_refuses_nan(tmp_path):
     frames = frames_like()
     frames[0, 3, 4] = np.nan

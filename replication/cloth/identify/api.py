@@ -12,6 +12,7 @@ from omegaconf import OmegaConf
 
 from replication.cloth.identify import problem
 from replication.cloth.identify.ea import EASettings, PaperEA
+from replication.cloth.identify.structured import check_settings as check_structured
 from replication.cloth.identify.structured import structured_identify
 from replication.errors import InputError, check
 from replication.optim.pymoo_adapters import ALGORITHMS, run_pymoo
@@ -66,6 +67,8 @@ def check_solver(kind, settings):
               f"{', '.join(ALGORITHMS)}")
     if kind == "paper_ea":
         EASettings.from_config(settings["ea"])
+    if kind == "structured":
+        check_structured(settings)
 
 
 def solve(kind, objective, trajectory, space, *, rng, seed=None, settings):
@@ -127,7 +130,9 @@ def identify(trajectory, *, model="5", rng=None, budget=None, method="structured
     best_vector : (5,) or (18,) ndarray
     cost : float
     info : dict
-        ``n_evals``, ``trace``, ``population`` (paper EA, best first), method details.
+        ``n_evals``, ``trace``, ``population`` (paper EA, best first), ``diagnostics``
+        (:func:`~replication.cloth.identify.problem.diagnose`: taus the data do not
+        determine, estimated noise, misfit), method details.
     """
     if method not in SOLVERS:
         raise InputError(f"method={method!r}: expected one of {', '.join(SOLVERS)}")
@@ -146,4 +151,6 @@ def identify(trajectory, *, model="5", rng=None, budget=None, method="structured
     info = solve(method, objective, trajectory, space, rng=rng, seed=seed, settings=settings)
     info["n_evals"] = objective.n_evals
     info["trace"] = objective.summary()["trace"]
-    return np.asarray(objective.best_point, float), float(objective.best_value), info
+    best = np.asarray(objective.best_point, float)
+    info["diagnostics"] = problem.diagnose(cost_fn, best, space)
+    return best, float(objective.best_value), info

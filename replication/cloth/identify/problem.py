@@ -12,9 +12,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from replication.cloth import regression
 from replication.cloth.costs import ClothCost, make_cost
 from replication.cloth.mesh import FAMILY_OF_TYPE, N_TYPES, type_lengths
 from replication.cloth.model import PARAM_NAMES_5, PARAM_NAMES_18, params_from_vectors, step
+from replication.cloth.noise import SIGMA_FLOOR_H, noise_sigma
 from replication.errors import InputError, check
 from replication.optim.objective import Objective
 
@@ -119,6 +121,8 @@ def cost_from_config(trajectory, cost_cfg):
         ``kind`` and ``frame`` / ``start``, ``window`` / ``frames`` (docs/experiments.md).
     """
     kind = cost_cfg.get("kind", "small")
+    check(kind in ("small", "full", "frames"),
+          f"cost.kind={kind!r}: expected 'small', 'full' or 'frames' (with +cost.frames=[t, ...])")
     if kind == "frames":
         given = cost_cfg.get("frames")
         check(isinstance(given, list) and all(isinstance(t, int) and not isinstance(t, bool)
@@ -179,6 +183,104 @@ def cloth_objective(cost, space, *, budget=None, with_residuals=False):
     residuals = residual_function(cost) if with_residuals else None
     return Objective(fun, space.lower, space.upper, budget=budget, residuals=residuals,
                      names=space.names)
+
+
+# what an answer's diagnostics warn about (docs/experiments.md, "Warnings of an answer")
+NOISE_WARN_H = 3e-4   # estimated position noise (units of h) above which answers are biased
+MISFIT_WARN = 3.0     # residuals this many times what the estimated noise explains
+_MARGIN = 10          # frames on each side of the cost's frames for the residual check
+
+
+def diagnose(cost, best, space):
+    """What the data say about an answer ``best`` beyond its cost (JSON-ready).
+
+    - ``undetermined``: the tau entries the cost does not determine (setting one to 1e6
+      leaves the cost bit for bit unchanged, so no spring of its types reaches its limit
+      in the cost's frames and every larger value has the same cost: a lower bound only),
+      and the stiffnesses whose doubling or halving changes the cost by less than about
+      4 x ``6 noise^2`` (normalised like the cost): the data do not show their force.
+    - ``noise_h``: position noise (units of ``h``, floored at ``SIGMA_FLOOR_H``) estimated
+      from the one-step residuals of ``best`` (:func:`replication.cloth.regression.
+      residuals`) on the cost's frames and ``_MARGIN`` frames around them, over the
+      particle-frames the constraint leaves alone (:func:`~replication.cloth.regression.
+      constraint_mask`; :func:`replication.cloth.noise.noise_sigma`).
+    - ``misfit``: the mean squared residual of every free particle over the ``6 noise^2``
+      that white noise alone gives: near 1 (or below) when the model explains the data up
+      to noise, far above for a local optimum, data in other units, or an effect the
+      model lacks.
+
+    Parameters
+    ----------
+    cost : ClothCost
+    best : (n_var,) array_like
+    space : SearchSpace
+    """
+    best = np.asarray(best, dtype=float)
+    taus = [i for i, name in enumerate(space.names) if name.startswith("tau")]
+    stiff = [i for i, name in enumerate(space.names) if name[0] in "kK"]
+    X = np.repeat(best[None, :], 1 + len(taus) + 2 * len(stiff), axis=0)
+    for row, i in enumerate(taus, start=1):
+        X[row, i] = 1e6
+    for row, i in enumerate(stiff):
+        X[1 + len(taus) + 2 * row, i] *= 2.0
+        X[2 + len(taus) + 2 * row, i] *= 0.5
+    costs = cost(params_from_vectors(X))
+    undetermined = [space.names[i] for row, i in enumerate(taus, start=1)
+                    if costs[row] == costs[0]]
+    data = regression.prepare(cost.trajectory)
+    params = params_from_vectors(best[None, :])
+    base = regression.BaseModel(params.rest[0], params.k[0], params.tau[0])
+    frames = np.arange(max(int(cost.frames.min()) - _MARGIN, 0),
+                       min(int(cost.frames.max()) + _MARGIN, data.n_frames - 2) + 1)
+    r = regression.residuals(data, base, (), frames)
+    masked = regression.usable_frames(frames, data.n_frames)
+    mask = np.zeros(r.shape[:2], dtype=bool)
+    if masked.size:
+        mask[np.isin(frames, masked)] = regression.constraint_mask(
+            data, base, (), masked, noisy=True)[masked]
+    sigma = max(noise_sigma(r, frames, data.free, mask if mask.any() else None),
+                SIGMA_FLOOR_H * data.h)
+    # a stiffness is not determined when doubling or halving it changes the cost by less
+    # than one parameter's chi-square threshold (about 4) times the noise of a residual
+    # (6 sigma^2 per coordinate, normalised as the cost is)
+    threshold = 4.0 * 6.0 * sigma ** 2 / cost.norm
+    changes = np.abs(costs[1 + len(taus):] - costs[0]).reshape(-1, 2).max(axis=1)
+    undetermined += [space.names[i] for i, change in zip(stiff, changes)
+                     if not change > threshold]
+    mean_square = float(np.mean(r[:, data.free] ** 2))
+    return {"undetermined": undetermined, "noise_h": sigma / data.h,
+            "misfit": mean_square / (6.0 * sigma ** 2) if np.isfinite(mean_square)
+            else float("inf"),
+            "residual_frames": [int(frames[0]), int(frames[-1])]}
+
+
+def diagnostic_warnings(diagnostics, best, names):
+    """One line per finding of :func:`diagnose` a user should act on."""
+    best = dict(zip(names, np.asarray(best, dtype=float)))
+    warnings = [
+        f"{name}={best[name]:.6g} is not determined by the data: doubling or halving it "
+        "changes the cost by less than the position noise does (no spring stretches "
+        "enough in the cost's frames for its force to show)"
+        for name in diagnostics["undetermined"] if name[0] in "kK"]
+    warnings += [
+        f"{name}={best[name]:.6g} is not determined by the cost: no spring of its type "
+        f"reaches (1 + {name}) x its rest length in the cost's frames, so every "
+        f"{name} >= {best[name]:.6g} has the same cost (a lower bound only; a cost on "
+        "frames where the cloth is more stretched, cost.frame= or cost.kind=full, may "
+        "determine it)"
+        for name in diagnostics["undetermined"] if name.startswith("tau")]
+    if diagnostics["misfit"] > MISFIT_WARN:
+        warnings.append(
+            f"the model at these parameters does not explain the data: its one-step "
+            f"residuals are {diagnostics['misfit']:.3g} x what position noise explains "
+            "(a local optimum, data in other units, or an effect the model lacks: the "
+            "discrepancy workflow finds which)")
+    if diagnostics["noise_h"] > NOISE_WARN_H:
+        warnings.append(
+            f"the positions carry noise of about {diagnostics['noise_h']:.2g} h (estimated "
+            "from the residuals): the one-step cost is biased under noise, expect errors "
+            "of several % or more in K and tau (REPORT.md, identification under noise)")
+    return warnings
 
 
 def truth_vector(trajectory, model="5"):

@@ -1,0 +1,105 @@
+"""Diagnostics of an identified answer (problem.diagnose): what the data do not determine,
+the position noise and the misfit, on trajectories rolled out by the plain, independent
+implementation of the contract (tests/cloth/plain_reference.py) and written by hand in the
+documented format."""
+
+import math
+
+import numpy as np
+import pytest
+
+from replication.cloth.identify import identify, problem
+from replication.cloth.io import read_trajectory
+from replication.errors import InputError
+from tests.cloth.plain_reference import plain_run
+
+N, SIDE, STEPS, FRAME = 7, 0.6, 60, 40
+H = SIDE / (N - 1)
+REST = [H, H, H * math.sqrt(2), H * math.sqrt(2), 2 * H, 2 * H]
+
+
+def _write(path, frames, *, dt=0.002, pinned=((0, 0), (0, N - 1)), meta=None):
+    arrays = {"positions": np.asarray(frames, dtype=float).reshape(-1, N, N, 3),
+              "dt": np.float64(dt), "mass": np.float64(0.001),
+              "gravity": np.array([0.0, 0.0, -9.81]),
+              "pinned": np.array(pinned, dtype=np.int64).reshape(-1, 2)}
+    if meta is not None:
+        arrays["meta"] = np.array(meta)
+    np.savez(path, **arrays)
+    return read_trajectory(path)
+
+
+def _diagnose(trajectory, K, tau):
+    cost = problem.cost_from_config(trajectory, {"kind": "small", "frame": FRAME})
+    space = problem.search_space(trajectory, {"rest": [0.8, 1.2], "K": [0.1, 10.0],
+                                              "tau": [0.01, 1.0]})
+    truth = np.array([H, H * math.sqrt(2), 2 * H, K, tau])
+    found = problem.diagnose(cost, truth, space)
+    return found, problem.diagnostic_warnings(found, truth, space.names)
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("diagnostics")
+    pinned = ((0, 0), (0, N - 1))
+    return {tau: np.array(plain_run(STEPS, REST, [4.0] * 6, [tau] * 6, n=N, side=SIDE,
+                                    pinned=pinned))
+            for tau in (0.01, 0.8)} | {"folder": folder}
+
+
+def test_a_tau_the_constraint_never_reaches_is_flagged_and_an_acting_one_is_not(runs):
+    loose = _write(runs["folder"] / "loose.npz", runs[0.8])
+    found, warnings = _diagnose(loose, 4.0, 0.8)
+    assert found["undetermined"] == ["tau"]
+    assert any(w.startswith("tau=0.8 is not determined by the cost") for w in warnings)
+    tight = _write(runs["folder"] / "tight.npz", runs[0.01])
+    found, warnings = _diagnose(tight, 4.0, 0.01)
+    assert found["undetermined"] == [] and warnings == []
+    assert found["misfit"] < 1.0 and found["noise_h"] < 1e-6
+
+
+def test_noise_is_estimated_and_warned_about_above_the_warning_level(runs):
+    rng = np.random.default_rng(3)
+    for level, warned in ((1e-5, False), (3e-3, True)):
+        noisy = runs[0.01] + level * H * rng.standard_normal(runs[0.01].shape)
+        noisy[:, [0, N - 1]] = runs[0.01][:, [0, N - 1]]      # pins stay put
+        found, warnings = _diagnose(_write(runs["folder"] / "noisy.npz", noisy), 4.0, 0.01)
+        assert found["noise_h"] == pytest.approx(level, rel=0.3)
+        assert any("carry noise" in w for w in warnings) is warned
+        assert found["misfit"] < 2.0
+
+
+def test_data_in_other_units_are_reported_as_not_explained(runs):
+    # the recorded time step is written 10 x too long: no parameters make the model fit
+    wrong = _write(runs["folder"] / "dt.npz", runs[0.01], dt=0.02)
+    found, warnings = _diagnose(wrong, 4.0, 0.01)
+    assert found["misfit"] > 100
+    assert any("does not explain the data" in w for w in warnings)
+
+
+def test_a_stiffness_without_stretched_springs_is_flagged(tmp_path):
+    # no pins: the sheet falls freely, no spring leaves its rest length, K has no effect
+    falling = np.array(plain_run(STEPS, REST, [4.0] * 6, [0.3] * 6, n=N, side=SIDE,
+                                 pinned=()))
+    found, warnings = _diagnose(_write(tmp_path / "fall.npz", falling, pinned=()), 4.0, 0.3)
+    assert "K" in found["undetermined"]
+    assert any(w.startswith("K=4 is not determined by the data") for w in warnings)
+
+
+def test_identify_returns_the_diagnostics(runs):
+    loose = _write(runs["folder"] / "loose.npz", runs[0.8])
+    _, _, info = identify(loose, rng=0, cost={"kind": "small", "frame": FRAME})
+    assert info["diagnostics"]["undetermined"] == ["tau"]
+
+
+@pytest.mark.parametrize("truth, found", [
+    ('{"true_params": [1, 2, 3, 4, 5]}', "JSON type list"),
+    ('{"true_params": {"K": "abc"}}', "true_params.l01=null"),
+    ('{"true_params": {"l01": 1, "l23": 1, "l45": 1, "K": "abc", "tau": 1}}',
+     'true_params.K="abc"'),
+    ('{"true_params": {"l01": 1, "l23": 1, "l45": 1, "K": 0, "tau": 1}}', "true_params.K=0"),
+])
+def test_a_malformed_ground_truth_is_refused_with_the_field(tmp_path, runs, truth, found):
+    with pytest.raises(InputError, match="field 'meta'") as error:
+        _write(tmp_path / "meta.npz", runs[0.01], meta=truth)
+    assert found in str(error.value)

@@ -331,12 +331,32 @@ def _standard_errors(fit, name, model):
 PLAUSIBLE_REST = (0.67, 1.5)   # base rest length / observed mean length of its type
 MIN_SHRINK = 1.5               # held-out gap before / after the named effects
 MAX_BODY_FORCE = 0.5           # a named body force above this share of the weight
+SAME_DIRECTIONS = 0.05         # anisotropic stiffness with |ratio j/i - 1| under this
+# the detection limit measured on outside data (REPORT.md, discrepancy_outside): effects
+# are named when their one-step displacements over the particle-frames the fit uses add up
+# to this many one-step noise sds (sqrt(6) sigma); weaker ones often go unnamed
+DETECTION_SNR = 30.0
+MENTION_LIMIT = 0.01           # warn when the limit is above this share of the weight
 
 
-def _warnings(data, base_fit, located, named_effects, gap_before, gap_after):
+def detection_limit(data, mask, sigma_h):
+    """The smallest effect the workflow names reliably on these data: an RMS one-step
+    displacement ``DETECTION_SNR * sqrt(6) sigma / sqrt(M)`` (``M`` particle-frames in
+    ``mask``), in units of ``h`` and as an acceleration over ``|g|`` (a force over the
+    weight)."""
+    used = max(int(np.count_nonzero(mask)), 1)
+    displacement_h = DETECTION_SNR * np.sqrt(6.0) * sigma_h / np.sqrt(used)
+    share = displacement_h * data.h / (data.scene.dt ** 2 * np.linalg.norm(data.scene.gravity))
+    return {"snr": DETECTION_SNR, "particle_frames": used,
+            "displacement_h": float(displacement_h), "share_of_weight": float(share)}
+
+
+def _warnings(data, base_fit, located, named_effects, gap_before, gap_after, limit=None,
+              unexplained=None):
     """Lines a user should read before the verdict: a base fit that cannot be right, a
     structure measured without the constraint mask, named effects that shrink the
-    held-out gap little, a body force that looks like a unit or time-step mistake."""
+    held-out gap little, an anisotropic stiffness without anisotropy, a body force that
+    looks like a unit or time-step mistake."""
     warnings = []
     if located.get("mask_dropped"):
         warnings.append(
@@ -360,7 +380,23 @@ def _warnings(data, base_fit, located, named_effects, gap_before, gap_after):
             f"the named effect(s) shrink the held-out rollout gap only "
             f"{gap_before / gap_after:.3g}-fold ({gap_before:.3g} -> {gap_after:.3g} h): "
             "treat the name(s) as tentative; an effect outside the library may be acting")
+    if (limit is not None and not named_effects and unexplained is None
+            and limit["share_of_weight"] > MENTION_LIMIT):
+        warnings.append(
+            f"nothing is named; at this noise ({located['noise_sigma_h']:.2g} h) the "
+            f"detection limit of the outside study (SNR {limit['snr']:g}) is an effect of "
+            f"about {100 * limit['share_of_weight']:.2g}% of the weight (an RMS one-step "
+            f"displacement of {limit['displacement_h']:.2g} h): weaker effects may be "
+            "present unnamed (REPORT.md, 'tested blind on outside data', shows how often "
+            "effects below the limit are named)")
     for effect in named_effects:
+        if (effect["name"] == "anisotropic_stiffness"
+                and abs(effect["parameters"]["ratio_j_over_i"] - 1.0) < SAME_DIRECTIONS):
+            warnings.append(
+                "anisotropic_stiffness is named with equal stiffness along j and i (ratio "
+                f"{effect['parameters']['ratio_j_over_i']:.4g}): the springs along i and j "
+                "differ from the shear springs, not from each other, which the library does "
+                "not describe; discrepancy.model=18 (a stiffness per spring type) may fit it")
         if effect["name"] == "body_force":
             force = np.array([effect["parameters"]["coefficients"][f"f_{c}"] for c in "xyz"])
             share = float(np.linalg.norm(force)
@@ -482,6 +518,7 @@ def analyse(trajectory, config=None, *, rng=None):
     remaining = ((_scaled_q(data, r_final, frames, settings, mask, common)[0] - 1.0)
                  / max(_scaled_q(data, state["r"], frames, settings, mask, common)[0] - 1.0,
                        1e-12)) if selected else 1.0
+    limit = detection_limit(data, mask, located["noise_sigma_h"])
     unexplained = None
     if q_current > settings["q_threshold"] and (
             not selected or remaining > settings["unexplained_fraction"]):
@@ -512,7 +549,9 @@ def analyse(trajectory, config=None, *, rng=None):
         "candidates_by_step": rounds,
         "tried": tried,
         "dropped": dropped,
+        "detection_limit": limit,
         "warnings": _warnings(data, base_fit, located, named_effects,
-                              gap_before["rollout"], gap_current["rollout"]),
+                              gap_before["rollout"], gap_current["rollout"], limit,
+                              unexplained),
         "settings": settings,
     }

@@ -70,6 +70,31 @@ def _draw_figures(sequence, found, figure_dir):
     return [str(p) for p in paths]
 
 
+# the whole frame moves by one translation when at least this share of its pixels moves
+# and one translation explains at least this share of their normal flow (rotating objects
+# on the suite's sequences: under 0.35; a pan: over 0.99)
+MOVING_SHARE, TRANSLATION_SHARE = 0.5, 0.8
+
+
+def translation_warnings(frames, settings):
+    """A warning when one translation of the whole frame explains the motion (a camera
+    pan): the rotating regions found are then pieces of it (rotations about points far
+    away look like translations)."""
+    from replication.motion import irc
+    from replication.motion.derivatives import sequence_derivatives
+
+    ea = settings["ea"]
+    pixels = sequence_derivatives(frames, sigma=ea["sigma"],
+                                  relative_threshold=ea["relative_threshold"])
+    u, v, moving, explained = irc.translation_fit(pixels, settings["snake"]["tolerance"])
+    if moving >= MOVING_SHARE and explained >= TRANSLATION_SHARE:
+        return [f"{100 * moving:.0f}% of the frame moves, by one translation ({u:.3g}, "
+                f"{v:.3g}) px/frame that explains {100 * explained:.0f}% of its normal flow: "
+                "the objects found are pieces of that motion (a camera pan?), not rotating "
+                "regions"]
+    return []
+
+
 def segment_sequence(config, out):
     """Paper 2.3 on one sequence: ``objects`` (one mask file each in ``out``), Figs. 5-7.
 
@@ -107,6 +132,7 @@ def segment_sequence(config, out):
               "discs": found["discs"].tolist(), "rotating": found["rotating"].tolist(),
               "snake_iterations": [r["iterations"] for r in found["regions"]]}
     progress(f"{len(found['objects'])} object(s) in {seconds:.1f} s")
+    result["warnings"] = translation_warnings(sequence.frames, settings)
     if "pyramid" in found:
         result["pyramid"] = {"factor": found["pyramid"]["factor"],
                              "shapes": found["pyramid"]["shapes"],

@@ -283,6 +283,27 @@ def line_distance(pixels, xi, eta, omega):
     return np.abs(residual) / pixels.gradient_norm
 
 
+def translation_fit(pixels, tolerance):
+    """The translation ``(u, v)`` (pixels/frame) that best explains ``Ix u + Iy v + It = 0``
+    over the moving pixels (normal flow ``|It| / |grad I|`` of at least ``tolerance``),
+    the share of ``pixels`` that move, and the share of the moving ones whose normal-flow
+    residual ``|Ix u + Iy v + It| / |grad I|`` it leaves under ``tolerance``: both near 1
+    when the whole scene moves by one translation (a camera pan), not by rotations.
+
+    Returns
+    -------
+    u, v, moving, explained : float
+    """
+    norm = pixels.gradient_norm
+    moving = np.abs(pixels.gt) / norm >= tolerance
+    if not np.any(moving):
+        return 0.0, 0.0, 0.0, 0.0
+    a = np.stack([pixels.gx[moving], pixels.gy[moving]], axis=1)
+    (u, v), *_ = np.linalg.lstsq(a, -pixels.gt[moving], rcond=None)
+    residual = np.abs(a @ np.array([u, v]) + pixels.gt[moving]) / norm[moving]
+    return float(u), float(v), float(np.mean(moving)), float(np.mean(residual < tolerance))
+
+
 def rigid_matrix(xi, eta, omega):
     """``(3, 3)`` homogeneous map of a point of frame t to frame t + 1."""
     c, s = math.cos(omega), math.sin(omega)

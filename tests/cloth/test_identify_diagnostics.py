@@ -103,3 +103,40 @@ def test_a_malformed_ground_truth_is_refused_with_the_field(tmp_path, runs, trut
     with pytest.raises(InputError, match="field 'meta'") as error:
         _write(tmp_path / "meta.npz", runs[0.01], meta=truth)
     assert found in str(error.value)
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"regression": {"first": 1, "stride": 0}}, r"structured.regression.stride=0"),
+    ({"tau_scan": {"n_grid": 0, "refine_evals": 40}}, r"structured.tau_scan.n_grid=0"),
+    ({"refine": {"box": -1, "ea": {}}}, r"structured.refine.box=-1"),
+])
+def test_structured_settings_it_cannot_run_with_are_refused(change, message):
+    from replication.cloth.identify.api import check_solver, default_structured
+
+    settings = {**default_structured(), **change}
+    with pytest.raises(InputError, match=message):
+        check_solver("structured", settings)
+
+
+def test_pins_outside_the_mesh_are_refused_and_the_default_follows_the_mesh():
+    from replication.cloth.model import make_scene
+
+    with pytest.raises(InputError, match=r"pinned: \(0, 16\) is outside the 9x9 mesh"):
+        make_scene(9, pinned=[[0, 0], [0, 16]])
+    assert make_scene(9).pinned.tolist() == [[0, 0], [0, 8]]
+
+
+def test_a_cost_frame_outside_the_data_names_the_setting_and_the_file(runs):
+    short = _write(runs["folder"] / "short.npz", runs[0.01])
+    with pytest.raises(InputError, match=r"short.npz: cost.frame=150 \(small cost\)"):
+        problem.cost_from_config(short, {"kind": "small", "frame": 150})
+    with pytest.raises(InputError, match=r"cost.kind='bogus': expected 'small', 'full' or"):
+        problem.cost_from_config(short, {"kind": "bogus"})
+
+
+def test_a_text_file_named_npz_is_not_called_pickled_data(tmp_path):
+    path = tmp_path / "notes.npz"
+    path.write_text("hello\n")
+    with pytest.raises(InputError, match="not with a zip archive's") as error:
+        read_trajectory(path)
+    assert "pickle" not in str(error.value)

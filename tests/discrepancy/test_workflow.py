@@ -42,8 +42,11 @@ def test_clean_data_gets_no_name(clean_result):
     assert 0.7e-4 < clean_result["where"]["noise_sigma_h"] < 1.3e-4
 
 
-def test_clean_data_get_no_warning(clean_result):
-    assert clean_result["warnings"] == []
+def test_clean_data_get_no_warning_but_the_detection_limit(clean_result):
+    limit = clean_result["detection_limit"]
+    assert [w.split(";")[0] for w in clean_result["warnings"]] == ["nothing is named"]
+    assert f"about {100 * limit['share_of_weight']:.2g}% of the weight" in \
+        clean_result["warnings"][0]
 
 
 def test_an_implausible_base_fit_a_small_gap_shrink_and_a_huge_body_force_are_warned(
@@ -66,6 +69,31 @@ def test_an_implausible_base_fit_a_small_gap_shrink_and_a_huge_body_force_are_wa
     found = _warnings(data, fit, {"mask_dropped": True}, [force], 1.0, 0.9)
     assert [w.split(" ")[:3] for w in found] == [
         ["no", "particle", "stays"], ["the", "named", "effect(s)"], ["the", "named", "body"]]
+    same = {"name": "anisotropic_stiffness", "parameters": {"ratio_j_over_i": 1.001}}
+    assert _warnings(data, fit, located, [same], 2.0, 1.0)[0].startswith(
+        "anisotropic_stiffness is named with equal stiffness along j and i")
+    assert _warnings(data, fit, located, [dict(same, parameters={"ratio_j_over_i": 1.3})],
+                     2.0, 1.0) == []
+
+
+def test_the_detection_limit_follows_the_noise_and_is_mentioned_when_nothing_is_named(
+        clean_trajectory):
+    from replication.cloth import regression
+    from replication.discrepancy.workflow import _warnings, detection_limit
+
+    data = regression.prepare(clean_trajectory)
+    fit = regression.fit(data, np.arange(5, 90, 5))
+    mask = np.zeros((data.n_frames, data.x.shape[1]), dtype=bool)
+    mask[:24] = True                       # 24 x 289 particle-frames
+    limit = detection_limit(data, mask, 1e-3)
+    assert limit["particle_frames"] == 24 * 289
+    assert limit["displacement_h"] == pytest.approx(30 * np.sqrt(6) * 1e-3 / np.sqrt(24 * 289))
+    weight_step = data.scene.dt ** 2 * 9.81 / data.h    # one step of free fall, in h
+    assert limit["share_of_weight"] == pytest.approx(limit["displacement_h"] / weight_step)
+    located = {"mask_dropped": False, "noise_sigma_h": 1e-3}
+    assert _warnings(data, fit, located, [], 1.0, 1.0, limit)[0].startswith(
+        "nothing is named; at this noise (0.001 h) the detection limit")
+    assert _warnings(data, fit, located, [], 1.0, 1.0, detection_limit(data, mask, 1e-7)) == []
 
 
 def test_planted_drag_is_named_with_its_coefficient():

@@ -317,3 +317,24 @@ def test_rescue_finds_nothing_on_a_static_sequence(two_objects):
     data = disc_ea.disc_data(frames)
     settings = {**assignment.DEFAULTS, **ASSIGN}
     assert assignment.unexplained_regions(data, [], settings) == []
+
+
+def test_a_camera_pan_is_warned_about_and_a_rotation_is_not():
+    """Frames made here with scipy.ndimage from a smooth random texture: one translated by
+    (1, 0) px/frame, one rotated about its centre."""
+    import yaml
+    from scipy import ndimage
+
+    from replication.experiments.segment_multi import translation_warnings
+    from replication.motion.segment import pipeline as segmentation
+
+    settings = segmentation.settings_from(yaml.safe_load(open(
+        "configs/segment_method/paper.yaml")))
+    texture = ndimage.gaussian_filter(np.random.default_rng(0).random((140, 140)), 2.0)
+    pan = np.stack([ndimage.shift(texture, (0, t), order=3, mode="nearest")[10:-10, 10:-10]
+                    for t in range(3)])
+    turn = np.stack([ndimage.rotate(texture, 1.5 * t, reshape=False, order=3,
+                                    mode="nearest")[10:-10, 10:-10] for t in range(3)])
+    warned = translation_warnings(pan, settings)
+    assert len(warned) == 1 and "one translation (1" in warned[0]
+    assert translation_warnings(turn, settings) == []

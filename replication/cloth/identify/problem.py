@@ -266,8 +266,8 @@ def diagnostic_warnings(diagnostics, best, names):
         f"{name}={best[name]:.6g} is not determined by the cost: no spring of its type "
         f"reaches (1 + {name}) x its rest length in the cost's frames, so every "
         f"{name} >= {best[name]:.6g} has the same cost (a lower bound only; a cost on "
-        "frames where the cloth is more stretched, cost.frame= or cost.kind=full, may "
-        "determine it)"
+        "frames where the cloth is more stretched, set by cost.frame, cost.frames or "
+        "cost.kind=full, may determine it)"
         for name in diagnostics["undetermined"] if name.startswith("tau")]
     if diagnostics["misfit"] > MISFIT_WARN:
         warnings.append(

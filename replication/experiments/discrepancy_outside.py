@@ -81,6 +81,7 @@ def run_one(spec, settings, folder):
         "Q": result["where"]["Q"], "noise_sigma_h_estimate": result["where"]["noise_sigma_h"],
         "base_fit": result["base"]["fit"], "K_fitted": result["final_base"]["k"][0],
         "tau_fitted": result["final_base"]["tau"][0],
+        "warned": bool(result.get("warnings")), "warnings": list(result.get("warnings", [])),
         "wall_seconds": wall,
     }
 
@@ -174,6 +175,9 @@ def summarise(rows, detection_snr):
         "n_gap_shrink": len(shrink),
         "by_kind": by_kind,
         "refused": int(sum(r["refused"] is not None for r in rows)),
+        "n_wrong": int(sum(not r["exact"] for r in rows)),
+        "wrong_warned": int(sum(not r["exact"] and r["warned"] for r in rows)),
+        "exact_warned": int(sum(r["exact"] and r["warned"] for r in rows)),
         "wall_seconds_median": float(np.median([r["wall_seconds"] for r in rows])),
         "wall_seconds_max": float(np.max([r["wall_seconds"] for r in rows])),
     }
@@ -183,7 +187,7 @@ def summarise(rows, detection_snr):
 SWEEP_CSV = Path("results/discrepancy_outside_sweep.csv")
 _ROOT = Path(__file__).resolve().parents[2]
 _ROW_FIELDS = ("exact", "min_snr", "noise_h", "n_frames", "unexplained", "expected_unexplained",
-               "gap_before", "gap_after", "refused", "wall_seconds")
+               "gap_before", "gap_after", "refused", "warned", "wall_seconds")
 _ROW_LISTS = ("kinds", "named", "expected_names")
 
 
@@ -220,6 +224,7 @@ def rows_from_gathered(path=None):
                 row[key] = items
             row["exact"] = bool(row["exact"])
             row["unexplained"] = bool(row["unexplained"])
+            row["warned"] = bool(row["warned"])
             row["min_snr"] = float(row["min_snr"])
             rows.append(row)
             index += 1

@@ -39,6 +39,11 @@ def _by_composition(rows, limit):
                                      and not r["expected_names"]])]
 
 
+def _share(count, total):
+    """``count`` of ``total`` as a percentage (``-`` for none)."""
+    return f"{count} ({_pct(count / total)})" if total else "-"
+
+
 def outside_section(result):
     """The blind study on outside data: exact answers, false names, gap, time."""
     s = result["summary"]
@@ -81,6 +86,10 @@ def outside_section(result):
         f"| false 'unexplained' on effect-free data | 0 | "
         f"{s['false_unexplained_effect_free']} |",
         f"| valid datasets refused | 0 | {s['refused']} |",
+        f"| wrong answers that carry a warning (whole set, n={s['n_wrong']}) | | "
+        f"{_share(s['wrong_warned'], s['n_wrong'])} |",
+        f"| exact answers that carry a warning (n={s['n_datasets'] - s['n_wrong']}) | | "
+        f"{_share(s['exact_warned'], s['n_datasets'] - s['n_wrong'])} |",
         f"| median held-out gap shrink (exact answers naming effects, "
         f"n={s['n_gap_shrink']}) | >= 5x | {fmt(s['gap_shrink_median'], 3)}x |",
         f"| analysis time per dataset (median / max) | | "
@@ -102,7 +111,8 @@ def outside_section(result):
             called = ", ".join(r["named"]) or "none"
             lines.append(f"- {hidden} (noise {r['noise_h']:.2g} h, {r['n_frames']} frames, "
                          f"SNR {fmt(float(r['min_snr']), 3)}) -> {called}"
-                         f"{' + unexplained' if r['unexplained'] else ''}")
+                         f"{' + unexplained' if r['unexplained'] else ''}"
+                         f"{'; warned: ' + r['warnings'][0] if r.get('warnings') else ''}")
     lines += ["", f"![outside blind study]({result['figure']})" if result.get("figure") else "",
               "", "Regenerate: `replicate experiment=discrepancy_outside force=true`."]
     pooled_rows, runs = rows_from_gathered()
@@ -134,6 +144,11 @@ def outside_section(result):
             f"0 / 0 | {pooled['false_names_effect_free']} / "
             f"{pooled['false_unexplained_effect_free']} |",
             f"| valid datasets refused | 0 | {pooled['refused']} |",
+            f"| wrong answers that carry a warning (n={pooled['n_wrong']}) | | "
+            f"{_share(pooled['wrong_warned'], pooled['n_wrong'])} |",
+            f"| exact answers that carry a warning "
+            f"(n={pooled['n_datasets'] - pooled['n_wrong']}) | | "
+            f"{_share(pooled['exact_warned'], pooled['n_datasets'] - pooled['n_wrong'])} |",
             *[f"| exact answers above the limit, {label} (n={len(subset)}) | | "
               f"{_pct(sum(r['exact'] for r in subset) / len(subset)) if subset else 'n/a'} |"
               for label, subset in _by_composition(pooled_rows, limit)],

@@ -331,7 +331,7 @@ def _standard_errors(fit, name, model):
 PLAUSIBLE_REST = (0.67, 1.5)   # base rest length / observed mean length of its type
 MIN_SHRINK = 1.5               # held-out gap before / after the named effects
 MAX_BODY_FORCE = 0.5           # a named body force above this share of the weight
-SAME_DIRECTIONS = 0.05         # anisotropic stiffness with |ratio j/i - 1| under this
+SAME_DIRECTIONS = 3.0          # anisotropic stiffness with |dk_j - dk_i| under this many SEs
 # the detection limit measured on outside data (REPORT.md, discrepancy_outside): effects
 # are named when their one-step displacements over the particle-frames the fit uses add up
 # to this many one-step noise sds (sqrt(6) sigma); weaker ones often go unnamed
@@ -349,6 +349,15 @@ def detection_limit(data, mask, sigma_h):
     share = displacement_h * data.h / (data.scene.dt ** 2 * np.linalg.norm(data.scene.gravity))
     return {"snr": DETECTION_SNR, "particle_frames": used,
             "displacement_h": float(displacement_h), "share_of_weight": float(share)}
+
+
+def _no_anisotropy(parameters):
+    """Whether an anisotropic stiffness's two coefficients agree within ``SAME_DIRECTIONS``
+    standard errors of their difference (relative 1e-6 without standard errors)."""
+    dk_j, dk_i = (parameters["coefficients"][key] for key in ("dk_j", "dk_i"))
+    errors = parameters.get("standard_errors") or {}
+    se = float(np.hypot(errors.get("dk_j", 0.0), errors.get("dk_i", 0.0)))
+    return abs(dk_j - dk_i) <= max(SAME_DIRECTIONS * se, 1e-6 * max(abs(dk_j), abs(dk_i)))
 
 
 def _warnings(data, base_fit, located, named_effects, gap_before, gap_after, limit=None,
@@ -390,13 +399,13 @@ def _warnings(data, base_fit, located, named_effects, gap_before, gap_after, lim
             "present unnamed (REPORT.md, 'tested blind on outside data', shows how often "
             "effects below the limit are named)")
     for effect in named_effects:
-        if (effect["name"] == "anisotropic_stiffness"
-                and abs(effect["parameters"]["ratio_j_over_i"] - 1.0) < SAME_DIRECTIONS):
+        if effect["name"] == "anisotropic_stiffness" and _no_anisotropy(effect["parameters"]):
             warnings.append(
                 "anisotropic_stiffness is named with equal stiffness along j and i (ratio "
-                f"{effect['parameters']['ratio_j_over_i']:.4g}): the springs along i and j "
-                "differ from the shear springs, not from each other, which the library does "
-                "not describe; discrepancy.model=18 (a stiffness per spring type) may fit it")
+                f"{effect['parameters']['ratio_j_over_i']:.4g}, within {SAME_DIRECTIONS:g} "
+                "standard errors of 1): the springs along i and j differ from the shear "
+                "springs, not from each other, which the library does not describe; "
+                "discrepancy.model=18 (a stiffness per spring type) may fit it")
         if effect["name"] == "body_force":
             force = np.array([effect["parameters"]["coefficients"][f"f_{c}"] for c in "xyz"])
             share = float(np.linalg.norm(force)
@@ -404,7 +413,8 @@ def _warnings(data, base_fit, located, named_effects, gap_before, gap_after, lim
             if share > MAX_BODY_FORCE:
                 warnings.append(
                     f"the named body force is {share:.3g} x the weight: a force that size "
-                    "more often means a wrong dt or positions in other units than gravity's")
+                    "is unusual; check dt and the units of positions against gravity's "
+                    "before reading it as physical")
     return warnings
 
 

@@ -461,7 +461,7 @@ def test_replicate_all_passes_force_and_hashes_inputs():
 
 # ---------------------------------------------------------------- Ctrl-C (a real process)
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
-def test_ctrl_c_during_the_sweep_exits_130_and_writes_nothing(tmp_path, signum):
+def test_ctrl_c_or_sigterm_during_the_sweep_exits_130_and_writes_nothing(tmp_path, signum):
     from scipy import ndimage
 
     rng = np.random.default_rng(0)

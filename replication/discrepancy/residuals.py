@@ -90,7 +90,7 @@ def structure(r, frames, free, n, *, window=10, patch=4, directions=None, floor=
     if mask is not None and not np.any(mask):
         mask = None   # a fit through the constraint has no mask: use everything
     sums, starts, complete = window_sums(r, frames, window, mask)
-    mask_dropped = mask is not None and not np.any(complete[:, free])
+    mask_dropped = mask is not None and len(starts) > 0 and not np.any(complete[:, free])
     if mask_dropped:
         # no particle stays in the mask for a whole window (a rough fit's mask is patchy):
         # Q would be measured on nothing and read 0; use everything instead

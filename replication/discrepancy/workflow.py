@@ -337,14 +337,19 @@ SAME_DIRECTIONS = 3.0          # anisotropic stiffness with |dk_j - dk_i| under 
 # to this many one-step noise sds (sqrt(6) sigma); weaker ones often go unnamed
 DETECTION_SNR = 30.0
 MENTION_LIMIT = 0.01           # warn when the limit is above this share of the weight
+LIMIT_CAVEAT = "nothing is named"   # how the detection-limit warning starts
 
 
-def detection_limit(data, mask, sigma_h):
+def detection_limit(data, mask, sigma_h, frames):
     """The smallest effect the workflow names reliably on these data: an RMS one-step
     displacement ``DETECTION_SNR * sqrt(6) sigma / sqrt(M)`` (``M`` particle-frames in
-    ``mask``), in units of ``h`` and as an acceleration over ``|g|`` (a force over the
-    weight)."""
-    used = max(int(np.count_nonzero(mask)), 1)
+    ``mask``, or the free particles over ``frames`` when the fit has no mask: a fit
+    through the constraint), in units of ``h`` and as an acceleration over ``|g|`` (a
+    force over the weight). The fit's mask is conservative, so the limit is too."""
+    used = int(np.count_nonzero(mask))
+    if used == 0:
+        used = len(frames) * int(np.count_nonzero(data.free))
+    used = max(used, 1)
     displacement_h = DETECTION_SNR * np.sqrt(6.0) * sigma_h / np.sqrt(used)
     share = displacement_h * data.h / (data.scene.dt ** 2 * np.linalg.norm(data.scene.gravity))
     return {"snr": DETECTION_SNR, "particle_frames": used,
@@ -392,7 +397,7 @@ def _warnings(data, base_fit, located, named_effects, gap_before, gap_after, lim
     if (limit is not None and not named_effects and unexplained is None
             and limit["share_of_weight"] > MENTION_LIMIT):
         warnings.append(
-            f"nothing is named; at this noise ({located['noise_sigma_h']:.2g} h) the "
+            f"{LIMIT_CAVEAT}; at this noise ({located['noise_sigma_h']:.2g} h) the "
             f"detection limit of the outside study (SNR {limit['snr']:g}) is an effect of "
             f"about {100 * limit['share_of_weight']:.2g}% of the weight (an RMS one-step "
             f"displacement of {limit['displacement_h']:.2g} h): weaker effects may be "
@@ -528,7 +533,7 @@ def analyse(trajectory, config=None, *, rng=None):
     remaining = ((_scaled_q(data, r_final, frames, settings, mask, common)[0] - 1.0)
                  / max(_scaled_q(data, state["r"], frames, settings, mask, common)[0] - 1.0,
                        1e-12)) if selected else 1.0
-    limit = detection_limit(data, mask, located["noise_sigma_h"])
+    limit = detection_limit(data, mask, located["noise_sigma_h"], frames)
     unexplained = None
     if q_current > settings["q_threshold"] and (
             not selected or remaining > settings["unexplained_fraction"]):

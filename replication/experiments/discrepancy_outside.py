@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from replication.cloth.io import read_trajectory
-from replication.discrepancy.workflow import analyse
+from replication.discrepancy.workflow import LIMIT_CAVEAT, analyse
 from replication.errors import InputError, check
 from replication.progress import progress
 from replication.results import write_json_atomic
@@ -81,7 +81,11 @@ def run_one(spec, settings, folder):
         "Q": result["where"]["Q"], "noise_sigma_h_estimate": result["where"]["noise_sigma_h"],
         "base_fit": result["base"]["fit"], "K_fitted": result["final_base"]["k"][0],
         "tau_fitted": result["final_base"]["tau"][0],
-        "warned": bool(result.get("warnings")), "warnings": list(result.get("warnings", [])),
+        # a warning other than the detection-limit caveat, which every "none" at a high
+        # limit carries, right or wrong; the caveat is counted apart
+        "warned": any(not w.startswith(LIMIT_CAVEAT) for w in result.get("warnings", [])),
+        "limit_caveat": any(w.startswith(LIMIT_CAVEAT) for w in result.get("warnings", [])),
+        "warnings": list(result.get("warnings", [])),
         "wall_seconds": wall,
     }
 
@@ -178,6 +182,8 @@ def summarise(rows, detection_snr):
         "n_wrong": int(sum(not r["exact"] for r in rows)),
         "wrong_warned": int(sum(not r["exact"] and r["warned"] for r in rows)),
         "exact_warned": int(sum(r["exact"] and r["warned"] for r in rows)),
+        "wrong_caveat": int(sum(not r["exact"] and r["limit_caveat"] for r in rows)),
+        "exact_caveat": int(sum(r["exact"] and r["limit_caveat"] for r in rows)),
         "wall_seconds_median": float(np.median([r["wall_seconds"] for r in rows])),
         "wall_seconds_max": float(np.max([r["wall_seconds"] for r in rows])),
     }
@@ -187,7 +193,8 @@ def summarise(rows, detection_snr):
 SWEEP_CSV = Path("results/discrepancy_outside_sweep.csv")
 _ROOT = Path(__file__).resolve().parents[2]
 _ROW_FIELDS = ("exact", "min_snr", "noise_h", "n_frames", "unexplained", "expected_unexplained",
-               "gap_before", "gap_after", "refused", "warned", "wall_seconds")
+               "gap_before", "gap_after", "refused", "warned", "limit_caveat",
+               "wall_seconds")
 _ROW_LISTS = ("kinds", "named", "expected_names")
 
 
@@ -225,6 +232,7 @@ def rows_from_gathered(path=None):
             row["exact"] = bool(row["exact"])
             row["unexplained"] = bool(row["unexplained"])
             row["warned"] = bool(row["warned"])
+            row["limit_caveat"] = bool(row["limit_caveat"])
             row["min_snr"] = float(row["min_snr"])
             rows.append(row)
             index += 1

@@ -291,14 +291,15 @@ def test_start_state_centred_is_the_seven_point_quadratic_fit():
 def test_the_outside_summary_counts_wrong_and_exact_answers_that_carry_a_warning():
     from replication.experiments.discrepancy_outside import summarise
 
-    def row(exact, warned, kinds=("air_damping",)):
-        return {"kinds": list(kinds), "min_snr": 100.0, "exact": exact,
+    def row(exact, warned, kinds=("air_damping",), caveat=False):
+        return {"kinds": list(kinds), "min_snr": 100.0, "exact": exact, "limit_caveat": caveat,
                 "expected_names": ["linear_damping"] if kinds else [],
                 "named": ["linear_damping"] if exact and kinds else [], "unexplained": False,
                 "expected_unexplained": False, "gap_before": 2.0, "gap_after": 1.0,
                 "noise_h": 1e-4, "refused": None, "wall_seconds": 1.0, "warned": warned}
 
-    rows = [row(False, True), row(False, False), row(True, True), row(True, False),
-            row(True, False, kinds=())]
+    rows = [row(False, True), row(False, False, caveat=True), row(True, True),
+            row(True, False), row(True, False, kinds=(), caveat=True)]
     summary = summarise(rows, 30.0)
     assert (summary["n_wrong"], summary["wrong_warned"], summary["exact_warned"]) == (2, 1, 1)
+    assert (summary["wrong_caveat"], summary["exact_caveat"]) == (1, 1)

@@ -90,7 +90,10 @@ def test_the_detection_limit_follows_the_noise_and_is_mentioned_when_nothing_is_
     fit = regression.fit(data, np.arange(5, 90, 5))
     mask = np.zeros((data.n_frames, data.x.shape[1]), dtype=bool)
     mask[:24] = True                       # 24 x 289 particle-frames
-    limit = detection_limit(data, mask, 1e-3)
+    limit = detection_limit(data, mask, 1e-3, np.arange(30))
+    # a fit through the constraint has no mask: the free particles of the frames count
+    empty = detection_limit(data, np.zeros_like(mask), 1e-3, np.arange(30))
+    assert empty["particle_frames"] == 30 * int(data.free.sum())
     assert limit["particle_frames"] == 24 * 289
     assert limit["displacement_h"] == pytest.approx(30 * np.sqrt(6) * 1e-3 / np.sqrt(24 * 289))
     weight_step = data.scene.dt ** 2 * 9.81 / data.h    # one step of free fall, in h
@@ -98,7 +101,8 @@ def test_the_detection_limit_follows_the_noise_and_is_mentioned_when_nothing_is_
     located = {"mask_dropped": False, "noise_sigma_h": 1e-3}
     assert _warnings(data, fit, located, [], 1.0, 1.0, limit)[0].startswith(
         "nothing is named; at this noise (0.001 h) the detection limit")
-    assert _warnings(data, fit, located, [], 1.0, 1.0, detection_limit(data, mask, 1e-7)) == []
+    assert _warnings(data, fit, located, [], 1.0, 1.0,
+                     detection_limit(data, mask, 1e-7, np.arange(30))) == []
 
 
 def test_planted_drag_is_named_with_its_coefficient():

@@ -60,9 +60,13 @@ def test_an_implausible_base_fit_a_small_gap_shrink_and_a_huge_body_force_are_wa
     fit = regression.fit(data, np.arange(5, 90, 5))
     located = {"mask_dropped": False}
     assert _warnings(data, fit, located, [], 1.0, 1.0) == []
+    from replication.cloth.mesh import type_lengths
+
     broken = SimpleNamespace(base=fit.base._replace(rest=fit.base.rest * 5))
+    ratio = broken.base.rest[0] / type_lengths(data.x, data.ops.n)[0]   # about 5
     assert _warnings(data, broken, located, [], 1.0, 1.0)[0].startswith(
-        "the base model does not fit these data plausibly (rest length of type 0 is 4.98")
+        "the base model does not fit these data plausibly (rest length of type 0 is "
+        f"{ratio:.3g} x")
     weight = 0.001 * 9.81
     force = {"name": "body_force", "parameters": {"coefficients": {
         "f_x": 0.0, "f_y": 0.0, "f_z": 0.9 * weight}}}

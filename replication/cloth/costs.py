@@ -54,7 +54,7 @@ def cost_frames(kind, n_frames, *, frame=SMALL_FRAME, start=FULL_START, window=F
                    else f"cost.start={start}, cost.window={window}")
         raise InputError(
             f"{setting} ({kind} cost): frame index "
-            f"t={int(frames.max() if frames.max() > 0 else frames.min())} is outside the "
+            f"t={int(frames.min() if frames.min() < 0 else frames.max())} is outside the "
             f"data: t and t+1 must be frames of the {n_frames}-frame file "
             f"(0 <= t <= {n_frames - 2}); set {setting.split('=')[0]}= for shorter data"
         )

@@ -245,6 +245,16 @@ def read_trajectory(path):
                       source=str(path))
 
 
+def _positive_number(value):
+    """A JSON number that is a positive finite float (not a boolean, not 10**400)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    try:
+        return bool(0.0 < float(value) < np.inf)
+    except OverflowError:
+        return False
+
+
 def _check_truth(path, truth):
     """``meta.true_params``, when present, scores answers: each of the 5-parameter model's
     values must be a positive finite number (other keys are free)."""
@@ -255,9 +265,8 @@ def _check_truth(path, truth):
         _fail(path, "meta", f"true_params of JSON type {type(truth).__name__}", expected)
     for name in PARAM_NAMES_5:
         value = truth.get(name)
-        if (isinstance(value, bool) or not isinstance(value, (int, float))
-                or not np.isfinite(value) or value <= 0):
-            _fail(path, "meta", f"true_params.{name}={json.dumps(value)}", expected)
+        if not _positive_number(value):
+            _fail(path, "meta", f"true_params.{name}={json.dumps(value)[:40]}", expected)
 
 
 def write_npz_deterministic(path, arrays):

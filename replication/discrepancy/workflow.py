@@ -26,7 +26,6 @@ import numpy as np
 from scipy.stats import chi2
 
 from replication.cloth import regression
-from replication.cloth.mesh import type_lengths
 from replication.discrepancy import effects as fx
 from replication.discrepancy.gap import STARTS, one_step_error, rollout_error, split_frames
 from replication.discrepancy.naming import score_candidates
@@ -313,22 +312,21 @@ def constancy(data, trial, name, frames, *, model, segments, alpha):
     return {**worst, "splits": out}
 
 
-def _standard_errors(fit, name, model):
-    """Standard errors of one effect's coefficients from the fit's cluster-robust
-    covariance (None for a fit through the constraint, which has none)."""
+def _covariance(fit, name, model):
+    """The block of the fit's cluster-robust covariance that belongs to one effect's
+    coefficients (None for a fit through the constraint, which has none)."""
     if fit.cov is None:
         return None
     at = regression.n_base(model)
     for plugin, theta in fit.terms:
         width = len(np.asarray(theta))
         if plugin.name == name:
-            variances = np.diag(fit.cov)[at:at + width]
-            return np.sqrt(np.maximum(variances, 0.0)).tolist()
+            return fit.cov[at:at + width, at:at + width]
         at += width
     return None
 
 
-PLAUSIBLE_REST = (0.67, 1.5)   # base rest length / observed mean length of its type
+PLAUSIBLE_REST = (0.67, 1.5)   # base rest length / observed median length of its type
 MIN_SHRINK = 1.5               # held-out gap before / after the named effects
 MAX_BODY_FORCE = 0.5           # a named body force above this share of the weight
 SAME_DIRECTIONS = 3.0          # anisotropic stiffness with |dk_j - dk_i| under this many SEs
@@ -358,10 +356,14 @@ def detection_limit(data, mask, sigma_h, frames):
 
 def _no_anisotropy(parameters):
     """Whether an anisotropic stiffness's two coefficients agree within ``SAME_DIRECTIONS``
-    standard errors of their difference (relative 1e-6 without standard errors)."""
+    standard errors of their difference (its variance from the covariance of the two, which
+    the shared springs correlate; relative 1e-6 without a covariance)."""
     dk_j, dk_i = (parameters["coefficients"][key] for key in ("dk_j", "dk_i"))
-    errors = parameters.get("standard_errors") or {}
-    se = float(np.hypot(errors.get("dk_j", 0.0), errors.get("dk_i", 0.0)))
+    covariance = parameters.get("covariance")
+    se = 0.0
+    if covariance is not None:
+        contrast = np.array([1.0, -1.0])
+        se = float(np.sqrt(max(contrast @ np.asarray(covariance) @ contrast, 0.0)))
     return abs(dk_j - dk_i) <= max(SAME_DIRECTIONS * se, 1e-6 * max(abs(dk_j), abs(dk_i)))
 
 
@@ -378,7 +380,7 @@ def _warnings(data, base_fit, located, named_effects, gap_before, gap_after, lim
             "the base fit, so the structure Q was measured on every particle, those the "
             "constraint moves included; where the base tau is rough that reads as "
             "structure: the verdict is unreliable (data too noisy or too short)")
-    observed = type_lengths(data.x, data.ops.n)
+    observed = regression.typical_lengths(data)
     ratios = base_fit.base.rest / np.where(observed > 0, observed, np.nan)
     odd = [f"rest length of type {t} is {ratio:.3g} x its observed length"
            for t, ratio in enumerate(ratios)
@@ -427,11 +429,15 @@ def _describe(effect_fit, name, evidence, model):
     effect = fx.get_effect(name)
     theta = effect_fit.term(name)
     base = {"k": effect_fit.base.k.tolist()}
-    errors = _standard_errors(effect_fit, name, model)
+    covariance = _covariance(effect_fit, name, model)
+    errors = (None if covariance is None else
+              dict(zip(effect.coefficients,
+                       np.sqrt(np.maximum(np.diag(covariance), 0.0)).tolist())))
     return {"name": name,
             "parameters": {"coefficients": dict(zip(effect.coefficients, theta.tolist())),
-                           "standard_errors": (dict(zip(effect.coefficients, errors))
-                                               if errors is not None else None),
+                           "standard_errors": errors,
+                           "covariance": (None if covariance is None
+                                          else covariance.tolist()),
                            **effect.physical(theta, base)},
             "evidence": evidence}
 

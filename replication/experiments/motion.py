@@ -350,6 +350,7 @@ def benchmark(config, out):
     check(repeats >= 1, f"repeats={repeats}: expected at least 1")
     sequence = _load(config.get("data", {}).get("path") or config["default_data"])
     frames = sequence.frames[:2]
+    check_grid(frames.shape[1:], settings)     # the benchmark votes into an exact accumulator
     derive = lambda: sequence_derivatives(frames, sigma=settings["sigma"],  # noqa: E731
                                           relative_threshold=settings["relative_threshold"])
     pixels = derive()

@@ -200,10 +200,9 @@ def single_rotation(config, out):
         "data": sequence.source,
         "irc": paper,
         "irc_refined": refined,
-        "warnings": answer_warnings(
-            paper, refined, settings,
-            found["grid"] if settings["accumulation"] == "exact" else None,
-            sequence.frames.shape[1:]),
+        # the pyramid's grid is its top level's, in input pixels (cell x factor)
+        "warnings": answer_warnings(paper, refined, settings, found["grid"],
+                                    sequence.frames.shape[1:]),
         "seconds": found["seconds"],
         "pixels_used": int(len(found["pixels"])),
         "region_pixels": int(np.count_nonzero(found["region"])),

@@ -76,16 +76,19 @@ def _draw_figures(sequence, found, figure_dir):
 MOVING_SHARE, TRANSLATION_SHARE = 0.5, 0.8
 
 
-def translation_warnings(frames, settings):
+def translation_warnings(frames, settings, pixels=None):
     """A warning when one translation of the whole frame explains the motion (a camera
     pan): the rotating regions found are then pieces of it (rotations about points far
-    away look like translations)."""
+    away look like translations). ``pixels``: the full-resolution derivatives of
+    ``frames`` at the settings' ``sigma`` and threshold when the caller has them (the
+    segmentation without a pyramid); computed here otherwise."""
     from replication.motion import irc
     from replication.motion.derivatives import sequence_derivatives
 
     ea = settings["ea"]
-    pixels = sequence_derivatives(frames, sigma=ea["sigma"],
-                                  relative_threshold=ea["relative_threshold"])
+    if pixels is None:
+        pixels = sequence_derivatives(frames, sigma=ea["sigma"],
+                                      relative_threshold=ea["relative_threshold"])
     u, v, moving, explained = irc.translation_fit(pixels, settings["snake"]["tolerance"])
     if moving >= MOVING_SHARE and explained >= TRANSLATION_SHARE:
         return [f"{100 * moving:.0f}% of the frame moves, by one translation ({u:.3g}, "
@@ -132,7 +135,9 @@ def segment_sequence(config, out):
               "discs": found["discs"].tolist(), "rotating": found["rotating"].tolist(),
               "snake_iterations": [r["iterations"] for r in found["regions"]]}
     progress(f"{len(found['objects'])} object(s) in {seconds:.1f} s")
-    result["warnings"] = translation_warnings(sequence.frames, settings)
+    # without a pyramid the segmentation's pixels are these derivatives (same settings)
+    result["warnings"] = translation_warnings(
+        sequence.frames, settings, None if "pyramid" in found else found["pixels"])
     if "pyramid" in found:
         result["pyramid"] = {"factor": found["pyramid"]["factor"],
                              "shapes": found["pyramid"]["shapes"],

@@ -229,12 +229,12 @@ def _check_frames(path, frames):
         t = int(np.nonzero(~finite.reshape(frames.shape[0], -1).all(axis=1))[0][0])
         _fail(path, f"frame {t}", f"{int(np.count_nonzero(~finite))} NaN or inf value(s)",
               "finite intensities")
-    for t, frame in enumerate(frames):
-        if np.ptp(frame) == 0:
-            _fail(path, f"frame {t}", f"a constant image (all {frame.flat[0]:g})",
-                  "an image with some contrast (the method needs image gradients)")
+    ranges = np.ptp(frames, axis=(1, 2))
+    for t in np.flatnonzero(ranges == 0)[:1]:
+        _fail(path, f"frame {t}", f"a constant image (all {frames[t].flat[0]:g})",
+              "an image with some contrast (the method needs image gradients)")
     # squared gradients of values this small (large) underflow (overflow) in float64
-    contrast = float(np.max([np.ptp(frame) for frame in frames]))
+    contrast = float(ranges.max())
     if not 1e-100 <= contrast <= 1e100:
         _fail(path, "frames", f"intensities varying by {contrast:.3g}",
               "a contrast from 1e-100 to 1e100 (rescale the frames, e.g. to 0..1)")

@@ -58,6 +58,13 @@ def test_a_tau_the_constraint_never_reaches_is_flagged_and_an_acting_one_is_not(
     assert found["misfit"] < 1.0 and found["noise_h"] < 1e-6
 
 
+def test_an_answer_off_the_truth_leaves_residuals_above_the_noise(runs):
+    tight = _write(runs["folder"] / "tight.npz", runs[0.01])
+    found, warnings = _diagnose(tight, 4.0 * 1.01, 0.01)    # K 1% off, noise-free data
+    assert found["misfit"] > 3
+    assert any("the answer is off" in w for w in warnings)
+
+
 def test_noise_is_estimated_and_warned_about_above_the_warning_level(runs):
     rng = np.random.default_rng(3)
     for level, warned in ((1e-5, False), (3e-3, True)):
@@ -74,7 +81,7 @@ def test_data_in_other_units_are_reported_as_not_explained(runs):
     wrong = _write(runs["folder"] / "dt.npz", runs[0.01], dt=0.02)
     found, warnings = _diagnose(wrong, 4.0, 0.01)
     assert found["misfit"] > 100
-    assert any("does not explain the data" in w for w in warnings)
+    assert any("leaves one-step residuals" in w for w in warnings)
 
 
 def test_a_stiffness_without_stretched_springs_is_flagged(tmp_path):
@@ -109,6 +116,7 @@ def test_a_malformed_ground_truth_is_refused_with_the_field(tmp_path, runs, trut
     ({"regression": {"first": 1, "stride": 0}}, r"structured.regression.stride=0"),
     ({"tau_scan": {"n_grid": 0, "refine_evals": 40}}, r"structured.tau_scan.n_grid=0"),
     ({"refine": {"box": -1, "ea": {}}}, r"structured.refine.box=-1"),
+    ({"tau_scan": {"n_grid": 100.0, "refine_evals": 40}}, r"structured.tau_scan.n_grid=100.0"),
 ])
 def test_structured_settings_it_cannot_run_with_are_refused(change, message):
     from replication.cloth.identify.api import check_solver, default_structured

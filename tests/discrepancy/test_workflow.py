@@ -60,10 +60,9 @@ def test_an_implausible_base_fit_a_small_gap_shrink_and_a_huge_body_force_are_wa
     fit = regression.fit(data, np.arange(5, 90, 5))
     located = {"mask_dropped": False}
     assert _warnings(data, fit, located, [], 1.0, 1.0) == []
-    from replication.cloth.mesh import type_lengths
 
     broken = SimpleNamespace(base=fit.base._replace(rest=fit.base.rest * 5))
-    ratio = broken.base.rest[0] / type_lengths(data.x, data.ops.n)[0]   # about 5
+    ratio = broken.base.rest[0] / regression.typical_lengths(data)[0]   # about 5
     assert _warnings(data, broken, located, [], 1.0, 1.0)[0].startswith(
         "the base model does not fit these data plausibly (rest length of type 0 is "
         f"{ratio:.3g} x")
@@ -73,16 +72,22 @@ def test_an_implausible_base_fit_a_small_gap_shrink_and_a_huge_body_force_are_wa
     found = _warnings(data, fit, {"mask_dropped": True}, [force], 1.0, 0.9)
     assert [w.split(" ")[:3] for w in found] == [
         ["no", "particle", "stays"], ["the", "named", "effect(s)"], ["the", "named", "body"]]
-    def anisotropy(dk_j, dk_i, se):
+    def anisotropy(dk_j, dk_i, se, correlation=0.0):
+        covariance = se ** 2 * np.array([[1.0, correlation], [correlation, 1.0]])
         return {"name": "anisotropic_stiffness", "parameters": {
             "coefficients": {"dk_j": dk_j, "dk_i": dk_i}, "ratio_j_over_i": 1.0,
-            "standard_errors": {"dk_j": se, "dk_i": se}}}
+            "covariance": covariance.tolist()}}
 
     # equal within their errors (shear springs stiffer than the rest): warned
     assert _warnings(data, fit, located, [anisotropy(-2.0385, -2.0386, 1e-4)], 2.0, 1.0)[
         0].startswith("anisotropic_stiffness is named with equal stiffness along j and i")
     # a 1% anisotropy measured to 1e-4: a real one, no warning
     assert _warnings(data, fit, located, [anisotropy(-0.04, 0.0, 1e-4)], 2.0, 1.0) == []
+    # errors of 1e-3 that the shared springs correlate (0.9999) leave the difference
+    # known to 1.4e-5, so a 1e-4 difference is real: no warning (independent ones would)
+    assert _warnings(data, fit, located, [anisotropy(-2.0385, -2.0386, 1e-3)], 2.0, 1.0)
+    assert _warnings(data, fit, located, [anisotropy(-2.0385, -2.0386, 1e-3, 0.9999)],
+                     2.0, 1.0) == []
 
 
 def test_the_detection_limit_follows_the_noise_and_is_mentioned_when_nothing_is_named(

@@ -93,6 +93,15 @@ def test_answer_warnings_flag_a_translation_and_a_centre_at_the_accumulator_edge
     far = dict(inside, xi=32.0, eta=-1e7, omega=1e-7)
     assert any("looks like a translation" in w
                for w in answer_warnings(inside, far, settings, grid, (64, 64)))
+    # the pyramid's top-level grid in input pixels (factor 4): its last row is at
+    # eta = to_input(63, 4), and a centre there is on its edge
+    from replication.motion import pyramid
+
+    top = pyramid.grid_in_input(grid, 4)
+    last = float(pyramid.to_input(63.0, 4))
+    assert answer_warnings(dict(inside, eta=last - 1.0), inside, settings, top,
+                           (256, 256)) != []
+    assert answer_warnings(dict(inside, eta=120.0), inside, settings, top, (256, 256)) == []
 
 
 def test_accumulator_settings_that_cannot_work_are_refused():

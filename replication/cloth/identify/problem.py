@@ -198,7 +198,8 @@ def diagnose(cost, best, space):
       leaves the cost bit for bit unchanged, so no spring of its types reaches its limit
       in the cost's frames and every larger value has the same cost: a lower bound only),
       and the stiffnesses whose doubling or halving changes the cost by less than about
-      4 x ``6 noise^2`` (normalised like the cost): the data do not show their force.
+      8 x ``6 noise^2`` (normalised like the cost, whose velocity errors repeat the
+      position errors): the data do not show their force.
     - ``noise_h``: position noise (units of ``h``, floored at ``SIGMA_FLOOR_H``) estimated
       from the one-step residuals of ``best`` (:func:`replication.cloth.regression.
       residuals`) on the cost's frames and ``_MARGIN`` frames around them, over the
@@ -242,8 +243,10 @@ def diagnose(cost, best, space):
                 SIGMA_FLOOR_H * data.h)
     # a stiffness is not determined when doubling or halving it changes the cost by less
     # than one parameter's chi-square threshold (about 4) times the noise of a residual
-    # (6 sigma^2 per coordinate, normalised as the cost is)
-    threshold = 4.0 * 6.0 * sigma ** 2 / cost.norm
+    # (6 sigma^2 per coordinate, normalised as the cost is), counted twice: with
+    # velocities derived from positions and dtc = dt, each velocity error dtc dv equals
+    # its position error
+    threshold = 4.0 * 2.0 * 6.0 * sigma ** 2 / cost.norm
     changes = np.abs(costs[1 + len(taus):] - costs[0]).reshape(-1, 2).max(axis=1)
     undetermined += [space.names[i] for i, change in zip(stiff, changes)
                      if not change > threshold]
@@ -271,10 +274,10 @@ def diagnostic_warnings(diagnostics, best, names):
         for name in diagnostics["undetermined"] if name.startswith("tau")]
     if diagnostics["misfit"] > MISFIT_WARN:
         warnings.append(
-            f"the model at these parameters does not explain the data: its one-step "
-            f"residuals are {diagnostics['misfit']:.3g} x what position noise explains "
-            "(a local optimum, data in other units, or an effect the model lacks: the "
-            "discrepancy workflow finds which)")
+            f"the model at these parameters leaves one-step residuals "
+            f"{diagnostics['misfit']:.3g} x what the position noise explains: the answer "
+            "is off (approximate, or a local optimum), the data are in other units or "
+            "another dt, or the model lacks an effect (the discrepancy workflow finds which)")
     if diagnostics["noise_h"] > NOISE_WARN_H:
         warnings.append(
             f"the positions carry noise of about {diagnostics['noise_h']:.2g} h (estimated "

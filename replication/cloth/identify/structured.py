@@ -35,18 +35,16 @@ ZOOM_POINTS = 7   # values per zoom of the tau scan: 3x narrower per 7 evaluatio
 def check_settings(settings):
     """Refuse structured-identifier settings it cannot run with (InputError naming the
     setting, as ``structured.GROUP.KEY``); see :func:`structured_identify`."""
-    def value(group, key, kind, low, what, default=None):
+    def integer(group, key, low, what, default=None):
         got = (settings.get(group) or {}).get(key, default)
-        ok = (isinstance(got, (int, float)) and not isinstance(got, bool)
-              and (kind is float or float(got).is_integer()) and np.isfinite(got)
-              and got >= low)
-        check(ok, f"structured.{group}.{key}={got!r}: expected {what}")
+        check(isinstance(got, int) and not isinstance(got, bool) and got >= low,
+              f"structured.{group}.{key}={got!r}: expected {what}")
 
-    value("regression", "first", int, 0, "a frame index >= 0")
-    value("regression", "stride", int, 1, "an integer >= 1")
-    value("tau_scan", "n_grid", int, 2, "an integer >= 2 (grid points)")
-    value("tau_scan", "refine_evals", int, 0, "an integer >= 0 (evaluations)")
-    value("tau_scan", "cycles", int, 1, "an integer >= 1", default=1)
+    integer("regression", "first", 0, "a frame index >= 0")
+    integer("regression", "stride", 1, "an integer >= 1")
+    integer("tau_scan", "n_grid", 2, "an integer >= 2 (grid points)")
+    integer("tau_scan", "refine_evals", 0, "an integer >= 0 (evaluations)")
+    integer("tau_scan", "cycles", 1, "an integer >= 1", default=1)
     box = (settings.get("refine") or {}).get("box")
     check(isinstance(box, (int, float)) and not isinstance(box, bool) and 0 < box < 1,
           f"structured.refine.box={box!r}: expected a relative half-width in (0, 1)")

@@ -15,3 +15,20 @@ def test_report_is_built_from_the_committed_results():
         raise AssertionError(f"REPORT.md differs from the results at line {first[0]}:\n"
                              f"built:     {first[1]}\ncommitted: {first[2]}\n"
                              "rebuild it: python -m replication.report.build")
+
+
+def test_the_discrepancy_example_section_lists_vectors_and_leaves_matrices_out():
+    """A named effect's covariance and a mass map (lists of lists) stay in result.json;
+    the table shows scalars and vectors."""
+    import json
+
+    from replication.report.discrepancy import example_section
+
+    result = json.loads((PROJECT_ROOT / "results/discrepancy_example/result.json").read_text())
+    effect = result["named_effects"][0]
+    effect["parameters"].update(covariance=[[1e-6, 0.0], [0.0, 1e-6]],
+                                relative_mass=[[1.0, 1.1], [0.9, 1.0]], direction=[0.0, 1.0])
+    text = example_section(result).markdown
+    row = next(line for line in text.splitlines() if line.startswith("| with effect"))
+    assert "direction = (0, 1)" in row
+    assert "covariance" not in row and "relative_mass" not in row

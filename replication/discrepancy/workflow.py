@@ -382,7 +382,7 @@ def _warnings(data, base_fit, located, named_effects, gap_before, gap_after, lim
             "structure: the verdict is unreliable (data too noisy or too short)")
     observed = regression.typical_lengths(data)
     ratios = base_fit.base.rest / np.where(observed > 0, observed, np.nan)
-    odd = [f"rest length of type {t} is {ratio:.3g} x its observed length"
+    odd = [f"rest length of type {t} is {ratio:.3g} x its median observed length"
            for t, ratio in enumerate(ratios)
            if not PLAUSIBLE_REST[0] <= ratio <= PLAUSIBLE_REST[1]]
     odd += [f"stiffness of type {t} is {k:.3g}" for t, k in enumerate(base_fit.base.k)

@@ -180,9 +180,9 @@ def pyramid_rotation(frames, settings):
     pyramid, then the sampled refinement on every finer level (beyond the paper).
 
     The top level is the first whose sides are at most ``coarse_side`` pixels, so the
-    accumulator and the number of voting pixels do not grow with the frames; ``cell`` and
-    ``margin`` are in pixels of that level. Frames no larger than ``coarse_side`` give
-    exactly the ``exact`` method's answer.
+    accumulator and the number of voting pixels do not grow with the frames; ``cell`` is in
+    pixels of that level, ``margin`` in input pixels (divided by the level's factor).
+    Frames no larger than ``coarse_side`` give exactly the ``exact`` method's answer.
 
     Parameters
     ----------

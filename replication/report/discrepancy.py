@@ -292,10 +292,14 @@ def example_section(result):
         f"{fmt(gap['before']['one_step'], 3)} |",
     ]
     for effect in named:
+        # scalars and vectors; dicts (coefficients, their errors) and matrices (the
+        # covariance, a mass map) are in the result, not in the table
         params = ", ".join(
             f"{k} = " + ("(" + ", ".join(fmt(x, 3) for x in v) + ")" if isinstance(v, list)
                          else fmt(v, 4))
-            for k, v in effect["parameters"].items() if not isinstance(v, dict))
+            for k, v in effect["parameters"].items()
+            if v is not None and not isinstance(v, dict)
+            and not (isinstance(v, list) and any(isinstance(x, list) for x in v)))
         lines.append(f"| with effect | `{effect['name']}` | {params} | "
                      f"{fmt(gap['after']['rollout'], 3)} | {fmt(gap['after']['one_step'], 3)} |")
     truth = result.get("hidden_coefficients")

@@ -65,7 +65,7 @@ def test_an_implausible_base_fit_a_small_gap_shrink_and_a_huge_body_force_are_wa
     ratio = broken.base.rest[0] / regression.typical_lengths(data)[0]   # about 5
     assert _warnings(data, broken, located, [], 1.0, 1.0)[0].startswith(
         "the base model does not fit these data plausibly (rest length of type 0 is "
-        f"{ratio:.3g} x")
+        f"{ratio:.3g} x its median observed length")
     weight = 0.001 * 9.81
     force = {"name": "body_force", "parameters": {"coefficients": {
         "f_x": 0.0, "f_y": 0.0, "f_z": 0.9 * weight}}}

@@ -29,6 +29,11 @@ def test_multirun_resume_and_gather(tmp_path):
     assert again.returncode == 0, again.stderr
     assert again.stderr.count("up to date") == 2
     assert [p.read_text() for p in results] == before
+    # progress and --strict change no result, so they name no folder: resumed, not redone
+    quiet = run_cli(*args, "resume=true", "progress=none", "strict=true")
+    assert quiet.returncode == 0, quiet.stderr
+    assert sorted(sweep.rglob("result.json")) == results
+    assert [p.read_text() for p in results] == before
     assert gather_main([str(sweep)]) == 0
     rows = list(csv.DictReader(open(sweep / "results.csv")))
     assert [row["override.zoom"] for row in rows] == ["3", "4"]

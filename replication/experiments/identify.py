@@ -137,7 +137,11 @@ def identify_run(config, out):
 
 def ci_check(config, out):
     """Runner of ``cloth_ci``: identify the good case; fail when a parameter leaves its
-    tolerance (``tolerance: {name: relative}``).
+    tolerance (``tolerance: {name: relative}``) or, with ``check_misfit``, when the model
+    at the answer does not explain the data (its one-step residuals more than
+    ``problem.MISFIT_WARN`` times what the estimated position noise explains,
+    :func:`problem.diagnose`: the misfit warning). The failure names
+    every parameter outside its tolerance and the answer's warnings.
 
     Parameters
     ----------
@@ -154,20 +158,31 @@ def ci_check(config, out):
                                         f"one per parameter: {', '.join(names)}")
     check(all(float(v) > 0 for v in tolerance.values()),
           "tolerance: expected relative tolerances > 0")
+    check_misfit = config.get("check_misfit", True)
+    check(isinstance(check_misfit, bool), f"check_misfit={check_misfit!r}: expected true "
+                                          "or false")
     truth = problem.truth_vector(trajectory, model)
     check(truth is not None, f"{path}: no meta.true_params; the CI check needs data with "
                              "known parameters")
     best, cost, info = _identify(config, trajectory, run_rng(config["seed"]))
-    errors = problem.relative_errors(best, truth)
-    for name, error in zip(names, errors):
-        if abs(error) > float(tolerance[name]):
-            raise ToleranceError(
-                f"cloth_ci: {name} = {best[names.index(name)]:.6g} is {100 * error:+.3g}% "
-                f"from the truth {truth[names.index(name)]:.6g}; outside "
-                f"tolerance.{name}={tolerance[name]} (method {config['method']}, "
-                f"{info['n_evals']} evaluations)")
     result = _identification_result(config, label, trajectory, best, cost, info)
+    errors = problem.relative_errors(best, truth)
+    failures = [f"{name} = {best[i]:.6g} is {100 * errors[i]:+.3g}% from the truth "
+                f"{truth[i]:.6g} (tolerance.{name}={tolerance[name]})"
+                for i, name in enumerate(names) if abs(errors[i]) > float(tolerance[name])]
+    misfit = result["diagnostics"]["misfit"]
+    if check_misfit and not misfit <= problem.MISFIT_WARN:
+        failures.append(f"the model at the answer leaves one-step residuals {misfit:.3g} x "
+                        f"what the position noise explains (check_misfit: at most "
+                        f"{problem.MISFIT_WARN:g}): it does not explain these data, whatever "
+                        "the parameters")
+    if failures:
+        warnings = "".join(f"\n  warning: {w}" for w in result["warnings"])
+        raise ToleranceError(
+            f"cloth_ci ({config['method']}, {info['n_evals']} evaluations on {label}): "
+            + "; ".join(failures) + warnings)
     result["tolerance"] = tolerance
+    result["check_misfit"] = check_misfit
     result["passed"] = True
     return result
 

@@ -1,6 +1,8 @@
 """Identification experiments through the real command line and their refusals."""
 
 import json
+
+import numpy as np
 import os
 import subprocess
 from pathlib import Path
@@ -44,8 +46,31 @@ def test_ci_check_exits_non_zero_when_a_tolerance_is_violated(tmp_path):
     done = run_cli("experiment=cloth_ci", f"out={out}", "method=paper_ea",
                    "ea.generations=1")
     assert done.returncode == 2
-    assert "outside tolerance." in done.stderr and done.stderr.count("\n") == 1
+    error = done.stderr.split("\n")[0]
+    assert error.startswith("error: cloth_ci (paper_ea, ") and "from the truth" in error
+    # every parameter outside its tolerance is named, not only the first
+    assert error.count("% from the truth") == sum(
+        f"(tolerance.{name}=0.01)" in error for name in ("l01", "l23", "l45", "K", "tau"))
+    assert error.count("% from the truth") >= 2
     assert not (out / "result.json").exists()
+
+
+def test_ci_check_fails_on_data_the_model_does_not_explain(tmp_path):
+    """The reference played backwards: a frictionless cloth's parameters fit it, but the
+    constraint acts out of order and the residuals are far above the noise."""
+    arrays = dict(np.load("synthetic_data/cloth/reference_tau0.5.npz"))
+    arrays["positions"] = arrays["positions"][::-1].copy()
+    path = tmp_path / "reversed.npz"
+    np.savez(path, **arrays)
+    failed = run_cli("experiment=cloth_ci", f"out={tmp_path / 'a'}", f"data.path={path}")
+    assert failed.returncode == 2 and not (tmp_path / "a" / "result.json").exists()
+    assert "does not explain these data" in failed.stderr
+    assert "\n  warning: the model at these parameters leaves" in failed.stderr
+    unchecked = run_cli("experiment=cloth_ci", f"out={tmp_path / 'b'}", f"data.path={path}",
+                        "check_misfit=false")
+    assert unchecked.returncode == 0, unchecked.stderr
+    result = json.loads((tmp_path / "b" / "result.json").read_text())
+    assert result["passed"] and result["diagnostics"]["misfit"] > 3
 
 
 @pytest.mark.parametrize("name, overrides, message", [

@@ -324,10 +324,49 @@ def _hydra_message(error):
         name = text.split("Could not find 'experiment/", 1)[1].split("'", 1)[0]
         return (f"experiment={name}: unknown experiment; expected one of "
                 + ", ".join(available_experiments()))
+    text = text.split("\nConfig search path:", 1)[0]
+    if "Available options in" in text:
+        # a config group's options, one per tab-indented line: one comma-separated list
+        head, _, options = text.partition("Available options in")
+        group, _, names = options.partition(":")
+        names = [line.strip() for line in names.splitlines() if line.strip()]
+        return (" ".join(head.split()) + f"; available options in{group}: "
+                + ", ".join(names))
     lines = [line.strip() for line in text.splitlines() if line.strip()]
     lines = [line for line in lines if not line.startswith(("full_key", "object_type",
                                                             "Set the environment"))]
     return "; ".join(lines[:2]) or type(error).__name__
+
+
+def unread_added_keys(overrides, defaults):
+    """The keys that ``+KEY=VALUE`` overrides add and the experiment's config (``defaults``)
+    does not hold: Hydra accepts any new key, and a runner that does not read it ignores
+    it, so a misspelt ``+budgett=300`` would change nothing. Config groups (``+smoke=``)
+    and ``hydra.*`` are left out."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    unread = []
+    for override in OverridesParser.create().parse_overrides(list(overrides)):
+        key = override.key_or_group
+        if (not override.is_add() or key.startswith("hydra")
+                or (Path(CONFIG_DIR) / key).is_dir()):
+            continue
+        node, known = defaults, True
+        for part in key.split("."):
+            known = isinstance(node, dict) and part in node
+            if not known:
+                break
+            node = node[part]
+        if not known:
+            unread.append(key)
+    return unread
+
+
+def _note_unread(overrides, defaults, name):
+    for key in unread_added_keys(overrides, defaults or {}):
+        print(f"note: +{key} is not a key of {name}'s config: the run ignores it unless "
+              "the experiment reads it (docs/experiments.md lists the keys each one reads; "
+              "check the spelling)", file=sys.stderr)
 
 
 def precheck(overrides):
@@ -359,6 +398,7 @@ def precheck(overrides):
     if out is None:
         out = f"results/{config['name']}"
     check_config(config, defaults)
+    _note_unread(overrides, defaults, config["name"])
     check_out(out, force=config.get("force", False))
     check_writable(out)
     return out
@@ -400,6 +440,8 @@ def compose_first_job(args):
                         resolve=True)
                 if config.get("runner"):
                     check_config(config, defaults)
+        if config.get("runner"):
+            _note_unread(overrides, defaults, config["name"])
     except (HydraException, OmegaConfBaseException, ValueError) as error:
         raise InputError(_hydra_message(error)) from None
     finally:

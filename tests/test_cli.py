@@ -102,3 +102,19 @@ def test_report_lists_every_reported_experiment(tmp_path):
     text = build_report(tmp_path)  # no results: every section says how to make it
     for _, name, _ in experiment_entries():
         assert f"replicate experiment={name}" in text
+
+
+def test_an_added_key_the_experiment_does_not_hold_is_noted_and_a_known_one_is_not():
+    from replication.cli import unread_added_keys
+
+    defaults = {"budget": 2000, "cost": {"kind": "small", "frame": 150}, "data": {"path": None}}
+    overrides = ["+budgett=300", "+cost.frame=10", "+cost.start=5", "+smoke=cloth_ci",
+                 "+hydra.launcher.x=1", "budget=10", "+data.path=x"]
+    assert unread_added_keys(overrides, defaults) == ["budgett", "cost.start"]
+
+
+def test_an_unknown_config_group_option_lists_the_options():
+    done = run_cli("experiment=fig08_mesh", "+smoke=nope")
+    assert done.returncode == 2 and done.stderr.count("\n") == 1
+    assert "available options in 'smoke': bench_cloth, " in done.stderr
+    assert "fig08_mesh" in done.stderr

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import io
 import json
+import os
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -154,6 +155,9 @@ def read_trajectory(path):
     InputError
         One line naming the file, the field, what was found and what was expected.
     """
+    if not isinstance(path, (str, os.PathLike)):
+        raise InputError(f"path: a {type(path).__name__}; expected the path of a trajectory "
+                         ".npz (a str or pathlib.Path)")
     path = Path(path)
     if not path.exists():
         raise InputError(f"{path}: no such file; expected a trajectory .npz "

@@ -1,5 +1,7 @@
 """The paper's EA mechanics, the structured identifier and the cloth objective."""
 
+import re
+
 import numpy as np
 import pytest
 
@@ -110,6 +112,8 @@ def test_structured_identifier_finds_the_truth_without_meta(trajectory):
     best, cost, info = identify(blind, rng=0, budget=1000, settings=settings)
     truth = problem.truth_vector(trajectory)
     assert problem.is_success(best, truth, 1e-6) and info["n_evals"] <= 1000
+    assert info["warnings"] == problem.diagnostic_warnings(info["diagnostics"], best,
+                                                           problem.PARAM_NAMES_5)
     again, cost_again, info_again = identify(blind, rng=0, budget=1000, settings=settings)
     assert again.tolist() == best.tolist() and info_again["trace"] == info["trace"]
 
@@ -149,6 +153,26 @@ def test_identify_refuses_an_unknown_method_and_a_bad_algorithm(trajectory):
     for method in ("pymoo", "least_squares"):   # they run until the budget is spent
         with pytest.raises(InputError, match=f"method='{method}' runs until its budget"):
             identify(trajectory, method=method)
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"trajectory": "reference.npz"}, "trajectory: a str; expected a Trajectory"),
+    ({"budget": "abc"}, "budget='abc': expected an integer >= 1"),
+    ({"budget": 2.5}, "budget=2.5: expected an integer >= 1"),
+    ({"budget": 0}, "budget=0: expected an integer >= 1"),
+    ({"model": 7}, "model=7: expected '5' or '18'"),
+])
+def test_identify_refuses_arguments_it_cannot_use(trajectory, change, message):
+    arguments = {"trajectory": trajectory, **change}
+    with pytest.raises(InputError, match=re.escape(message)):
+        identify(arguments.pop("trajectory"), **arguments)
+
+
+def test_read_trajectory_refuses_a_path_that_is_not_one():
+    from replication.cloth.io import read_trajectory
+
+    with pytest.raises(InputError, match="path: a NoneType; expected the path"):
+        read_trajectory(None)
 
 
 def test_structured_defaults_are_the_config_group():

@@ -132,8 +132,25 @@ def identify(trajectory, *, model="5", rng=None, budget=None, method="structured
     info : dict
         ``n_evals``, ``trace``, ``population`` (paper EA, best first), ``diagnostics``
         (:func:`~replication.cloth.identify.problem.diagnose`: taus the data do not
-        determine, estimated noise, misfit), method details.
+        determine, estimated noise, misfit), ``warnings`` (the diagnostics a user should
+        read before the answer, as sentences), method details.
+
+    Raises
+    ------
+    InputError
+        A ``trajectory`` that is not a :class:`~replication.cloth.io.Trajectory`, a
+        ``budget`` that is not a positive integer, an unknown ``model`` or ``method``.
     """
+    from replication.cloth.io import Trajectory
+
+    check(isinstance(trajectory, Trajectory),
+          f"trajectory: a {type(trajectory).__name__}; expected a Trajectory (read a file "
+          "with replication.cloth.io.read_trajectory(path), which also validates it)")
+    check(str(model) in ("5", "18"), f"model={model!r}: expected '5' or '18'")
+    model = str(model)
+    check(budget is None or (isinstance(budget, (int, np.integer))
+                             and not isinstance(budget, bool) and budget >= 1),
+          f"budget={budget!r}: expected an integer >= 1 (cost evaluations) or None")
     if method not in SOLVERS:
         raise InputError(f"method={method!r}: expected one of {', '.join(SOLVERS)}")
     if method in ("pymoo", "least_squares") and budget is None:
@@ -153,4 +170,5 @@ def identify(trajectory, *, model="5", rng=None, budget=None, method="structured
     info["trace"] = objective.summary()["trace"]
     best = np.asarray(objective.best_point, float)
     info["diagnostics"] = problem.diagnose(cost_fn, best, space)
+    info["warnings"] = problem.diagnostic_warnings(info["diagnostics"], best, space.names)
     return best, float(objective.best_value), info

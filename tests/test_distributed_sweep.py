@@ -152,3 +152,16 @@ def test_dask_sweep_with_a_failing_job_exits_2_and_keeps_the_other_jobs(tmp_path
     assert runs == ["budget=50,data.path=synthetic_data/cloth/reference_tau0.5.npz,"
                     "method=paper_ea"]
     assert not (folder / "budget=50,data.path=README.md,method=paper_ea").exists()
+
+
+@pytest.mark.parametrize("setting, message", [
+    ("hydra.launcher.n_workers=0", "hydra.launcher.n_workers=0: expected at least 1"),
+    ("hydra.launcher.address=absent_scheduler.json", "no such scheduler file"),
+])
+def test_dask_settings_it_cannot_use_are_one_error_line(tmp_path, setting, message):
+    done = run_cli("-m", "experiment=fig08_mesh", "zoom=3,4", "hydra/launcher=dask",
+                   f"hydra.sweep.dir={tmp_path / 'sweep'}", f"figure_dir={tmp_path / 'f'}",
+                   setting)
+    assert done.returncode == 2 and done.stderr.startswith("error: ")
+    assert message in done.stderr and "Traceback" not in done.stderr
+    assert not list(tmp_path.rglob("result.json"))

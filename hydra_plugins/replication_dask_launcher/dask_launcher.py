@@ -80,6 +80,15 @@ class TailedStream(io.TextIOBase):
         return self.stream.fileno()
 
 
+CONNECT_SECONDS = 10   # how long to wait for a remote scheduler
+
+
+def _refuse(message):
+    """One ``error:`` line and exit status 2, as the suite's other refusals."""
+    print(f"error: {message}", file=sys.stderr, flush=True)
+    raise SystemExit(2)
+
+
 def run_one_job(state: SweepState, overrides: Sequence[str],
                 job_num: int) -> Tuple[JobReturn, str]:
     """Run one job of the sweep in this (worker) process.
@@ -154,9 +163,25 @@ class DaskLauncher(Launcher):
 
         if self.address:
             address = str(self.address)
-            if address.endswith(".json") and Path(address).is_file():
-                return Client(scheduler_file=address), None
-            return Client(address), None
+            if address.endswith(".json"):
+                if not Path(address).is_file():
+                    _refuse(f"hydra.launcher.address={address}: no such scheduler file; "
+                            "expected the file a scheduler wrote (dask scheduler "
+                            "--scheduler-file FILE) or an address tcp://HOST:PORT")
+                target = {"scheduler_file": address}
+            else:
+                target = {"address": address}
+            try:
+                return Client(**target, timeout=CONNECT_SECONDS), None
+            except (OSError, TimeoutError, ValueError) as error:
+                _refuse(f"hydra.launcher.address={address}: no Dask scheduler answered "
+                        f"within {CONNECT_SECONDS} s ({type(error).__name__}: "
+                        f"{str(error).splitlines()[0] if str(error) else ''}); expected a "
+                        "running scheduler at tcp://HOST:PORT (or its scheduler file), or "
+                        "address=null for a local cluster")
+        if self.n_workers < 1:
+            _refuse(f"hydra.launcher.n_workers={self.n_workers}: expected at least 1 worker "
+                    "process for the local cluster")
         options = {} if self.memory_limit is None else {"memory_limit": self.memory_limit}
         cluster = LocalCluster(n_workers=self.n_workers, threads_per_worker=1,
                                processes=True, host="127.0.0.1", dashboard_address=None,

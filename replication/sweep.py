@@ -330,10 +330,19 @@ def _main(argv=None):
     parser.add_argument("--x", default=None, metavar="OVERRIDE",
                         help="the swept override on the x axis; default: the first one "
                              "that varies, other than seed")
+    parser.add_argument("--no-plots", action="store_true",
+                        help="write the CSV only")
     args = parser.parse_args(argv)
     sweep_dir = Path(args.sweep_dir)
     if not sweep_dir.is_dir():
-        print(f"error: {sweep_dir}: no such folder", file=sys.stderr)
+        found = "is a file" if sweep_dir.exists() else "no such folder"
+        print(f"error: {sweep_dir}: {found}; expected a sweep folder (multirun/NAME, "
+              "with one result.json per run below it)", file=sys.stderr)
+        return 2
+    output = Path(args.output) if args.output else sweep_dir / "results.csv"
+    if not output.parent.is_dir():
+        print(f"error: --output {output}: no folder {output.parent}; expected a path in "
+              "an existing folder", file=sys.stderr)
         return 2
     from replication.errors import InputError
 
@@ -362,7 +371,6 @@ def _main(argv=None):
         return 2
     columns = sorted({key for row in rows for key in row},
                      key=lambda k: (k not in ("run", "experiment", "seed"), k))
-    output = Path(args.output) if args.output else sweep_dir / "results.csv"
     tmp = output.with_name(f".{output.name}.tmp")
     try:
         with open(tmp, "w", newline="") as handle:
@@ -374,6 +382,8 @@ def _main(argv=None):
         if tmp.exists():
             tmp.unlink()
     print(f"wrote {output} ({len(rows)} runs, {len(columns)} columns)")
+    if args.no_plots:
+        return 0
     if not metrics:
         print("no plots: pass --metric COLUMN or list sweep_metrics: in the experiment "
               f"config; numeric columns: {_few(numeric_columns(rows), 5)}")

@@ -40,9 +40,18 @@ def test_multirun_resume_and_gather(tmp_path):
     assert all(row["n_springs"] == "1566" for row in rows)
 
 
-def test_gather_refuses_empty_folder(tmp_path):
+def test_gather_refuses_empty_folder(tmp_path, capsys):
     assert gather_main([str(tmp_path)]) == 2
     assert gather_main([str(tmp_path / "absent")]) == 2
+    (tmp_path / "notes.txt").write_text("x")
+    capsys.readouterr()
+    assert gather_main([str(tmp_path / "notes.txt")]) == 2
+    assert "notes.txt: is a file; expected a sweep folder" in capsys.readouterr().err
+    sweep = fake_sweep(tmp_path / "sweep")
+    assert gather_main([str(sweep), "--output", str(tmp_path / "absent" / "x.csv")]) == 2
+    assert f"no folder {tmp_path / 'absent'}" in capsys.readouterr().err
+    assert gather_main([str(sweep), "--no-plots"]) == 0
+    assert (sweep / "results.csv").exists() and not list(sweep.glob("*.png"))
 
 
 def fake_sweep(folder, sweep_metrics=None):

@@ -29,15 +29,16 @@ def plot_series(lines, *, numeric, metric, x_label, path):
         colour = f"C{index % 10}"
         ax.plot([place(xv) for xv, _ in line["points"]], [y for _, y in line["points"]],
                 "o", color=colour, alpha=0.4, markersize=4)
+        # categories have no order between them: their medians are markers, not a line
         ax.plot([place(xv) for xv, _ in line["median"]], [y for _, y in line["median"]],
-                "-", color=colour, marker="s", markersize=5,
-                label=(line["label"] or "median") + " (median over seeds)")
+                "-" if numeric else "none", color=colour, marker="s", markersize=5,
+                label=line["label"] or "median over seeds")
     if not numeric:
         ax.set_xticks(range(len(categories)), categories, rotation=30, ha="right")
     ax.set_xlabel(x_label)
     ax.set_ylabel(metric)
-    ax.set_title(f"{metric} against {x_label}: runs (points), median over seeds (line)",
-                 fontsize=9)
+    ax.set_title(f"{metric} against {x_label}: runs (points), median over seeds "
+                 f"({'line' if numeric else 'squares'})", fontsize=9)
     if lines:
         ax.legend(fontsize=7)
     fig.tight_layout()

@@ -338,17 +338,32 @@ def _hydra_message(error):
     return "; ".join(lines[:2]) or type(error).__name__
 
 
-def unread_added_keys(overrides, defaults):
-    """The keys that ``+KEY=VALUE`` overrides add and the experiment's config (``defaults``)
-    does not hold: Hydra accepts any new key, and a runner that does not read it ignores
-    it, so a misspelt ``+budgett=300`` would change nothing. Config groups (``+smoke=``)
-    and ``hydra.*`` are left out."""
+def optional_keys():
+    """Names the package reads with ``.get("NAME"``: settings a runner takes when given
+    and defaults otherwise, which experiment configs may leave out (``cost.frames``)."""
+    import re
+
+    names = set()
+    for path in Path(__file__).resolve().parent.rglob("*.py"):
+        names.update(re.findall(r"\.get\(\s*[\"']([A-Za-z_][A-Za-z0-9_]*)[\"']",
+                                path.read_text()))
+    return names
+
+
+def unread_added_keys(overrides, defaults, optional=None):
+    """The keys that ``+KEY=VALUE`` (or ``++KEY=VALUE``) overrides add, which neither the
+    experiment's config (``defaults``) holds nor the package reads as an optional setting
+    (``optional``, default :func:`optional_keys`, by the key's last name): Hydra accepts
+    any new key, and a runner ignores what it does not read, so a misspelt ``+budgett=300``
+    would change nothing. Config groups (``+smoke=``) and ``hydra`` keys are left out."""
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
+    optional = optional_keys() if optional is None else optional
     unread = []
     for override in OverridesParser.create().parse_overrides(list(overrides)):
         key = override.key_or_group
-        if (not override.is_add() or key.startswith("hydra")
+        if (not (override.is_add() or override.is_force_add())
+                or key == "hydra" or key.startswith(("hydra.", "hydra/"))
                 or (Path(CONFIG_DIR) / key).is_dir()):
             continue
         node, known = defaults, True
@@ -357,16 +372,16 @@ def unread_added_keys(overrides, defaults):
             if not known:
                 break
             node = node[part]
-        if not known:
+        if not known and key.split(".")[-1] not in optional:
             unread.append(key)
     return unread
 
 
 def _note_unread(overrides, defaults, name):
     for key in unread_added_keys(overrides, defaults or {}):
-        print(f"note: +{key} is not a key of {name}'s config: the run ignores it unless "
-              "the experiment reads it (docs/experiments.md lists the keys each one reads; "
-              "check the spelling)", file=sys.stderr)
+        print(f"note: +{key} is not a key of {name}'s config, nor a setting the code "
+              "reads: the run ignores it (check the spelling against docs/experiments.md)",
+              file=sys.stderr)
 
 
 def precheck(overrides):

@@ -107,10 +107,17 @@ def test_report_lists_every_reported_experiment(tmp_path):
 def test_an_added_key_the_experiment_does_not_hold_is_noted_and_a_known_one_is_not():
     from replication.cli import unread_added_keys
 
+    from replication.cli import optional_keys
+
     defaults = {"budget": 2000, "cost": {"kind": "small", "frame": 150}, "data": {"path": None}}
     overrides = ["+budgett=300", "+cost.frame=10", "+cost.start=5", "+smoke=cloth_ci",
-                 "+hydra.launcher.x=1", "budget=10", "+data.path=x"]
-    assert unread_added_keys(overrides, defaults) == ["budgett", "cost.start"]
+                 "+hydra.launcher.x=1", "budget=10", "+data.path=x", "++hydrate=1",
+                 "+cost.framez=3"]
+    assert unread_added_keys(overrides, defaults, optional=set()) == [
+        "budgett", "cost.start", "hydrate", "cost.framez"]
+    # settings the code reads when given (cost_from_config's cost.start, cost.frames)
+    assert {"start", "frames", "window"} <= optional_keys()
+    assert unread_added_keys(overrides, defaults) == ["budgett", "hydrate", "cost.framez"]
 
 
 def test_an_unknown_config_group_option_lists_the_options():

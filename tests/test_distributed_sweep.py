@@ -155,8 +155,10 @@ def test_dask_sweep_with_a_failing_job_exits_2_and_keeps_the_other_jobs(tmp_path
 
 
 @pytest.mark.parametrize("setting, message", [
-    ("hydra.launcher.n_workers=0", "hydra.launcher.n_workers=0: expected at least 1"),
+    ("hydra.launcher.n_workers=0", "hydra.launcher.n_workers=0: expected an integer >= 1"),
+    ("hydra.launcher.n_workers=abc", "hydra.launcher.n_workers='abc': expected an integer"),
     ("hydra.launcher.address=absent_scheduler.json", "no such scheduler file"),
+    ("hydra.launcher.address=nonsense", "hydra.launcher.address=nonsense: not an address"),
 ])
 def test_dask_settings_it_cannot_use_are_one_error_line(tmp_path, setting, message):
     done = run_cli("-m", "experiment=fig08_mesh", "zoom=3,4", "hydra/launcher=dask",

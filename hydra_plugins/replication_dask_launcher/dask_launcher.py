@@ -144,7 +144,7 @@ class DaskLauncher(Launcher):
     def __init__(self, address: Optional[str] = None, n_workers: int = 2,
                  memory_limit: Optional[str] = None) -> None:
         self.address = address
-        self.n_workers = int(n_workers)
+        self.n_workers = n_workers   # checked when the sweep starts (one error line)
         self.memory_limit = memory_limit
         self.config: Optional[DictConfig] = None
         self.task_function: Optional[TaskFunction] = None
@@ -173,15 +173,20 @@ class DaskLauncher(Launcher):
                 target = {"address": address}
             try:
                 return Client(**target, timeout=CONNECT_SECONDS), None
-            except (OSError, TimeoutError, ValueError) as error:
+            except ValueError as error:
+                _refuse(f"hydra.launcher.address={address}: not an address ({error}); "
+                        "expected tcp://HOST:PORT, a scheduler file (*.json), or null for "
+                        "a local cluster")
+            except (OSError, TimeoutError) as error:
                 _refuse(f"hydra.launcher.address={address}: no Dask scheduler answered "
                         f"within {CONNECT_SECONDS} s ({type(error).__name__}: "
                         f"{str(error).splitlines()[0] if str(error) else ''}); expected a "
                         "running scheduler at tcp://HOST:PORT (or its scheduler file), or "
                         "address=null for a local cluster")
-        if self.n_workers < 1:
-            _refuse(f"hydra.launcher.n_workers={self.n_workers}: expected at least 1 worker "
-                    "process for the local cluster")
+        if (isinstance(self.n_workers, bool) or not isinstance(self.n_workers, int)
+                or self.n_workers < 1):
+            _refuse(f"hydra.launcher.n_workers={self.n_workers!r}: expected an integer >= 1 "
+                    "(worker processes of the local cluster)")
         options = {} if self.memory_limit is None else {"memory_limit": self.memory_limit}
         cluster = LocalCluster(n_workers=self.n_workers, threads_per_worker=1,
                                processes=True, host="127.0.0.1", dashboard_address=None,

@@ -64,13 +64,17 @@ def test_ci_check_fails_on_data_the_model_does_not_explain(tmp_path):
     np.savez(path, **arrays)
     failed = run_cli("experiment=cloth_ci", f"out={tmp_path / 'a'}", f"data.path={path}")
     assert failed.returncode == 2 and not (tmp_path / "a" / "result.json").exists()
-    assert "does not explain these data" in failed.stderr
-    assert "\n  warning: the model at these parameters leaves" in failed.stderr
+    assert "the data disagree with the model" in failed.stderr
+    assert "at the true parameters" in failed.stderr and "% from the truth" not in failed.stderr
     unchecked = run_cli("experiment=cloth_ci", f"out={tmp_path / 'b'}", f"data.path={path}",
                         "check_misfit=false")
     assert unchecked.returncode == 0, unchecked.stderr
     result = json.loads((tmp_path / "b" / "result.json").read_text())
     assert result["passed"] and result["diagnostics"]["misfit"] > 3
+    assert "truth_misfit" not in result    # not measured without the check
+    reference = run_cli("experiment=cloth_ci", f"out={tmp_path / 'c'}")
+    assert reference.returncode == 0, reference.stderr
+    assert json.loads((tmp_path / "c" / "result.json").read_text())["truth_misfit"] < 3
 
 
 @pytest.mark.parametrize("name, overrides, message", [

@@ -105,9 +105,7 @@ def test_report_lists_every_reported_experiment(tmp_path):
 
 
 def test_an_added_key_the_experiment_does_not_hold_is_noted_and_a_known_one_is_not():
-    from replication.cli import unread_added_keys
-
-    from replication.cli import optional_keys
+    from replication.cli import optional_keys, unread_added_keys
 
     defaults = {"budget": 2000, "cost": {"kind": "small", "frame": 150}, "data": {"path": None}}
     overrides = ["+budgett=300", "+cost.frame=10", "+cost.start=5", "+smoke=cloth_ci",

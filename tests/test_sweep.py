@@ -47,11 +47,12 @@ def test_gather_refuses_empty_folder(tmp_path, capsys):
     capsys.readouterr()
     assert gather_main([str(tmp_path / "notes.txt")]) == 2
     assert "notes.txt: is a file; expected a sweep folder" in capsys.readouterr().err
-    sweep = fake_sweep(tmp_path / "sweep")
+    sweep = fake_sweep(tmp_path / "sweep", sweep_metrics=["best.cost"])
     assert gather_main([str(sweep), "--output", str(tmp_path / "absent" / "x.csv")]) == 2
     assert f"no folder {tmp_path / 'absent'}" in capsys.readouterr().err
     assert gather_main([str(sweep), "--no-plots"]) == 0
     assert (sweep / "results.csv").exists() and not list(sweep.glob("*.png"))
+    assert gather_main([str(sweep)]) == 0 and list(sweep.glob("*.png"))   # plots by default
 
 
 def fake_sweep(folder, sweep_metrics=None):

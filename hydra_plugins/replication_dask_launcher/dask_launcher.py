@@ -84,7 +84,8 @@ CONNECT_SECONDS = 10   # how long to wait for a remote scheduler
 
 
 def _refuse(message):
-    """One ``error:`` line and exit status 2, as the suite's other refusals."""
+    """One ``error:`` line and exit status 2, as ``replication.cli._error`` writes (not
+    called here: Hydra imports this module at start-up, before the suite's own)."""
     print(f"error: {message}", file=sys.stderr, flush=True)
     raise SystemExit(2)
 

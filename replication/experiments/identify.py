@@ -105,7 +105,7 @@ def _identification_result(config, label, trajectory, best, cost, info):
     result["warnings"] = bound_warnings(best, problem.search_space(
         trajectory, config["bounds"], model=model), names)
     result["diagnostics"] = info["diagnostics"]
-    result["warnings"] += problem.diagnostic_warnings(info["diagnostics"], best, names)
+    result["warnings"] += info["warnings"]      # identify()'s, from the diagnostics
     budget = config.get("budget")
     if budget is not None and info["n_evals"] >= int(budget):   # structured or paper_ea
         result["warnings"].append(
@@ -166,10 +166,10 @@ def ci_check(config, out):
                              "known parameters")
     best, cost, info = _identify(config, trajectory, run_rng(config["seed"]))
     result = _identification_result(config, label, trajectory, best, cost, info)
-    errors = problem.relative_errors(best, truth)
-    failures = [f"{name} = {best[i]:.6g} is {100 * errors[i]:+.3g}% from the truth "
+    errors = result["relative_errors"]
+    failures = [f"{name} = {best[i]:.6g} is {100 * errors[name]:+.3g}% from the truth "
                 f"{truth[i]:.6g} (tolerance.{name}={tolerance[name]})"
-                for i, name in enumerate(names) if abs(errors[i]) > float(tolerance[name])]
+                for i, name in enumerate(names) if abs(errors[name]) > float(tolerance[name])]
     if check_misfit:
         # at the true parameters, so that it judges the data against the model and not
         # the answer's accuracy (the tolerances do that; on noise-free data any answer

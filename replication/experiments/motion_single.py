@@ -47,8 +47,7 @@ def answer_warnings(paper, refined, settings, grid=None, shape=None):
                         f"[{low:g}, {high:g}]: the rotation may lie outside it (widen "
                         "method.omega_min/omega_max)")
     if grid is not None:
-        right = grid.x0 + (grid.nx - 1) * grid.cell
-        bottom = grid.y0 + (grid.ny - 1) * grid.cell
+        right, bottom = grid.centre(grid.ny - 1, grid.nx - 1)
         if (min(abs(paper["xi"] - grid.x0), abs(paper["xi"] - right)) < grid.cell / 2
                 or min(abs(paper["eta"] - grid.y0), abs(paper["eta"] - bottom)) < grid.cell / 2):
             warnings.append(f"irc centre ({paper['xi']:.4g}, {paper['eta']:.4g}) is at the "

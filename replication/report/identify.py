@@ -291,13 +291,16 @@ def identify_section(result):
 
 def ci_section(result):
     """The CI check (it only writes a result when it passed)."""
+    from replication.cloth.identify.problem import MISFIT_WARN
+
     errors = result["relative_errors"]
     misfit = result.get("truth_misfit")
     text = (f"`replicate experiment=cloth_ci` identifies `{result['data']}` with the "
             f"{result['method']} method and exits with status 2 (no result written) if any "
             "parameter leaves its configured tolerance"
             + (", or if the model at the true parameters leaves one-step residuals more "
-               "than 3 x what the estimated position noise explains (`check_misfit`)"
+               f"than {MISFIT_WARN:g} x what the estimated position noise explains "
+               "(`check_misfit`)"
                if misfit is not None else "")
             + ". This run passed: "
             + ", ".join(f"{name} {_pct(err)} (tolerance {fmt(100 * result['tolerance'][name])}%)"

@@ -93,7 +93,7 @@ def test_an_implausible_base_fit_a_small_gap_shrink_and_a_huge_body_force_are_wa
 def test_the_detection_limit_follows_the_noise_and_is_mentioned_when_nothing_is_named(
         clean_trajectory):
     from replication.cloth import regression
-    from replication.discrepancy.workflow import _warnings, detection_limit
+    from replication.discrepancy.workflow import DETECTION_SNR, _warnings, detection_limit
 
     data = regression.prepare(clean_trajectory)
     fit = regression.fit(data, np.arange(5, 90, 5))
@@ -104,7 +104,8 @@ def test_the_detection_limit_follows_the_noise_and_is_mentioned_when_nothing_is_
     empty = detection_limit(data, np.zeros_like(mask), 1e-3, np.arange(30))
     assert empty["particle_frames"] == 30 * int(data.free.sum())
     assert limit["particle_frames"] == 24 * 289
-    assert limit["displacement_h"] == pytest.approx(30 * np.sqrt(6) * 1e-3 / np.sqrt(24 * 289))
+    assert limit["displacement_h"] == pytest.approx(
+        DETECTION_SNR * np.sqrt(6) * 1e-3 / np.sqrt(24 * 289))
     weight_step = data.scene.dt ** 2 * 9.81 / data.h    # one step of free fall, in h
     assert limit["share_of_weight"] == pytest.approx(limit["displacement_h"] / weight_step)
     located = {"mask_dropped": False, "noise_sigma_h": 1e-3}
@@ -219,3 +220,13 @@ def test_structure_measures_two_models_on_one_noise_scale():
     halved = structure(r, frames, free, n, sigma=2.0 * own["sigma"])
     assert halved["sigma"] == 2.0 * own["sigma"]
     assert np.isclose(halved["Q"], own["Q"] / 4.0)
+
+
+def test_the_warned_detection_limit_is_the_outside_study_s():
+    """The workflow's caveat quotes the limit the outside study states and measures."""
+    import yaml
+
+    from replication.discrepancy.workflow import DETECTION_SNR
+
+    study = yaml.safe_load(open("configs/experiment/discrepancy_outside.yaml"))["study"]
+    assert DETECTION_SNR == study["detection_snr"]

@@ -107,12 +107,14 @@ def test_answer_warnings_flag_a_translation_and_a_centre_at_the_accumulator_edge
 def test_accumulator_settings_that_cannot_work_are_refused():
     from replication.errors import InputError
     from replication.experiments.motion import _check_settings, check_grid
-    from replication.motion import single
+    from replication.motion import irc, single
 
     with pytest.raises(InputError, match="method.margin=-10.0: expected >= 0"):
         _check_settings(single.settings_from({"margin": -10.0}))
     fine = single.settings_from({"cell": 0.5})
     _check_settings(fine)
     check_grid((64, 64), fine)
-    with pytest.raises(InputError, match="accumulator of 6301 x 6301 cells"):
-        check_grid((64, 64), single.settings_from({"cell": 0.01}))
+    tiny = single.settings_from({"cell": 0.01})
+    grid = irc.image_grid((64, 64), margin=tiny["margin"], cell=tiny["cell"])
+    with pytest.raises(InputError, match=f"accumulator of {grid.ny} x {grid.nx} cells"):
+        check_grid((64, 64), tiny)

@@ -17,7 +17,7 @@ import numpy as np
 
 from replication.cloth import regression
 from replication.cloth.geometry import normals
-from replication.cloth.noise import SIGMA_FLOOR_H, noise_sigma, runs  # noqa: F401 (re-exported)
+from replication.cloth.noise import SIGMA_FLOOR_H, noise_sigma, runs
 
 
 def residuals(data, fit, frames):

@@ -15,6 +15,7 @@ written; ``limits.max_seconds`` bounds the run's time.
 from __future__ import annotations
 
 import errno
+import functools
 import importlib
 import os
 import shutil
@@ -338,16 +339,18 @@ def _hydra_message(error):
     return "; ".join(lines[:2]) or type(error).__name__
 
 
+@functools.lru_cache(maxsize=1)
 def optional_keys():
     """Names the package reads with ``.get("NAME"``: settings a runner takes when given
-    and defaults otherwise, which experiment configs may leave out (``cost.frames``)."""
+    and defaults otherwise, which experiment configs may leave out (``cost.frames``).
+    Read from the sources once per process, and only when an override adds a key."""
     import re
 
     names = set()
     for path in Path(__file__).resolve().parent.rglob("*.py"):
         names.update(re.findall(r"\.get\(\s*[\"']([A-Za-z_][A-Za-z0-9_]*)[\"']",
                                 path.read_text()))
-    return names
+    return frozenset(names)
 
 
 def unread_added_keys(overrides, defaults, optional=None):
@@ -358,7 +361,6 @@ def unread_added_keys(overrides, defaults, optional=None):
     would change nothing. Config groups (``+smoke=``) and ``hydra`` keys are left out."""
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
-    optional = optional_keys() if optional is None else optional
     unread = []
     for override in OverridesParser.create().parse_overrides(list(overrides)):
         key = override.key_or_group
@@ -372,8 +374,10 @@ def unread_added_keys(overrides, defaults, optional=None):
             if not known:
                 break
             node = node[part]
-        if not known and key.split(".")[-1] not in optional:
-            unread.append(key)
+        if not known:
+            optional = optional_keys() if optional is None else optional
+            if key.split(".")[-1] not in optional:
+                unread.append(key)
     return unread
 
 

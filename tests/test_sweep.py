@@ -29,8 +29,9 @@ def test_multirun_resume_and_gather(tmp_path):
     assert again.returncode == 0, again.stderr
     assert again.stderr.count("up to date") == 2
     assert [p.read_text() for p in results] == before
-    # progress output changes no result, so it names no folder: resumed, not redone
-    quiet = run_cli(*args, "resume=true", "progress=none")
+    # progress output and force change no result, so they name no folder: resumed, not
+    # redone
+    quiet = run_cli(*args, "resume=true", "progress=none", "force=true")
     assert quiet.returncode == 0, quiet.stderr
     assert sorted(sweep.rglob("result.json")) == results
     assert [p.read_text() for p in results] == before

@@ -10,7 +10,7 @@ import io
 import json
 import os
 import zipfile
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -164,7 +164,35 @@ def read_trajectory(path):
                          "(docs/data-formats.md)")
     if path.is_dir():
         raise InputError(f"{path}: is a folder; expected a trajectory .npz file")
-    raw = load_npz(path, "a trajectory file as in docs/data-formats.md")
+    return _validated(load_npz(path, "a trajectory file as in docs/data-formats.md"), path)
+
+
+def check_trajectory(trajectory):
+    """The reader's checks on a :class:`Trajectory` made in memory (not read from a file):
+    the same :class:`InputError` lines, naming ``trajectory.source``.
+
+    Returns
+    -------
+    Trajectory
+        With float arrays and int64 pins, as :func:`read_trajectory` returns them.
+    """
+    raw = {"positions": np.asarray(trajectory.positions), "dt": np.asarray(trajectory.dt),
+           "mass": np.asarray(trajectory.mass), "gravity": np.asarray(trajectory.gravity),
+           "pinned": np.asarray(trajectory.pinned), "damping": np.asarray(trajectory.damping)}
+    if trajectory.velocities is not None:
+        raw["velocities"] = np.asarray(trajectory.velocities)
+    where = ("trajectory (made in memory)" if trajectory.source == "<memory>"
+             else trajectory.source)
+    meta = trajectory.meta
+    if not isinstance(meta, dict):
+        _fail(where, "meta", f"a {type(meta).__name__}", "a dict")
+    _check_truth(where, meta.get("true_params"))
+    return replace(_validated(raw, where), meta=meta, source=trajectory.source)
+
+
+def _validated(raw, path):
+    """The :class:`Trajectory` of the arrays ``raw`` (``{key: ndarray}`` of an ``.npz``),
+    checked as docs/data-formats.md says; ``path`` names them in messages."""
     for key in REQUIRED:
         if key not in raw:
             _fail(path, key, "no such key (keys: " + ", ".join(sorted(raw)) + ")",

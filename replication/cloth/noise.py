@@ -40,3 +40,20 @@ def noise_sigma(r, frames, free, mask=None):
     gamma0 = g0 / max(count0, 1)
     gamma1 = g1 / max(count1, 1)
     return float(np.sqrt(max(gamma0 - gamma1, 0.0) / 10.0))
+
+
+def excess_power(r, free, sigma):
+    """Mean squared one-step residual of the ``free`` particles over the ``6 sigma^2`` that
+    white position noise of standard deviation ``sigma`` alone gives (module docstring):
+    near 1 when the model explains the data up to noise; ``inf`` for non-finite residuals.
+
+    Parameters
+    ----------
+    r : (F, P, 3) ndarray
+    free : (P,) bool ndarray
+    sigma : float
+    """
+    mean_square = float(np.mean(r[:, free] ** 2))
+    if not np.isfinite(mean_square):
+        return float("inf")
+    return mean_square / max(6.0 * sigma ** 2, 1e-300)

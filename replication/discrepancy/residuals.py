@@ -17,7 +17,7 @@ import numpy as np
 
 from replication.cloth import regression
 from replication.cloth.geometry import normals
-from replication.cloth.noise import SIGMA_FLOOR_H, noise_sigma, runs
+from replication.cloth.noise import SIGMA_FLOOR_H, excess_power, noise_sigma, runs
 
 
 def residuals(data, fit, frames):
@@ -180,7 +180,7 @@ def where(data, fit, frames, *, window=10, patch=4, mask=None):
     summary.update({
         "noise_sigma_h": sigma / data.h,
         "one_step_rms_h": float(np.sqrt(np.mean(np.sum(r[:, free] ** 2, axis=2)) / 3) / data.h),
-        "excess_power": float(np.mean(r[:, free] ** 2) / max(6.0 * sigma ** 2, 1e-300)),
+        "excess_power": excess_power(r, free, sigma),
         "map": per_particle.reshape(data.ops.n, data.ops.n).tolist(),
         "Q_vertical_windows": float(np.mean(np.mean(vertical[:, free], axis=1) ** 2
                                             * free.sum() / (4 * sigma ** 2 + 1e-300)))

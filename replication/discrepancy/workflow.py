@@ -344,10 +344,7 @@ def detection_limit(data, mask, sigma_h, frames):
     ``mask``, or the free particles over ``frames`` when the fit has no mask: a fit
     through the constraint), in units of ``h`` and as an acceleration over ``|g|`` (a
     force over the weight). The fit's mask is conservative, so the limit is too."""
-    used = int(np.count_nonzero(mask))
-    if used == 0:
-        used = len(frames) * int(np.count_nonzero(data.free))
-    used = max(used, 1)
+    used = max(int(np.count_nonzero(_used(data, frames, mask))), 1)
     displacement_h = DETECTION_SNR * np.sqrt(6.0) * sigma_h / np.sqrt(used)
     share = displacement_h * data.h / (data.scene.dt ** 2 * np.linalg.norm(data.scene.gravity))
     return {"snr": DETECTION_SNR, "particle_frames": used,

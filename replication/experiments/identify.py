@@ -55,8 +55,7 @@ def _single_trajectory(config):
 
 def _identify(config, trajectory, rng):
     method, model = config["method"], str(config["model"])
-    budget = config.get("budget")
-    check(budget is None or int(budget) >= 1, f"budget={budget}: expected >= 1 or null")
+    budget = config.get("budget")   # checked by identify(), before any work
     settings = method_settings(config, method)
     # validate bounds and cost frames before any work
     problem.search_space(trajectory, config["bounds"], model=model)
@@ -140,7 +139,7 @@ def ci_check(config, out):
     tolerance (``tolerance: {name: relative}``) or, with ``check_misfit``, when the model
     at the true parameters does not explain the data (its one-step residuals more than
     ``problem.MISFIT_WARN`` times what the estimated position noise explains,
-    :func:`problem.diagnose`; written as ``truth_misfit``). The failure names
+    :func:`problem.residual_fit`; written as ``truth_misfit``). The failure names
     every parameter outside its tolerance and the answer's warnings.
 
     Parameters
@@ -174,9 +173,8 @@ def ci_check(config, out):
         # at the true parameters, so that it judges the data against the model and not
         # the answer's accuracy (the tolerances do that; on noise-free data any answer
         # 1e-5 off already leaves residuals far above the noise floor)
-        at_truth = problem.diagnose(
-            problem.cost_from_config(trajectory, config["cost"]), truth,
-            problem.search_space(trajectory, config["bounds"], model=model))["misfit"]
+        at_truth = problem.residual_fit(
+            problem.cost_from_config(trajectory, config["cost"]), truth)["misfit"]
         result["truth_misfit"] = at_truth
         if not at_truth <= problem.MISFIT_WARN:
             failures.append(

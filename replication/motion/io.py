@@ -230,7 +230,8 @@ def _check_frames(path, frames):
         _fail(path, f"frame {t}", f"{int(np.count_nonzero(~finite))} NaN or inf value(s)",
               "finite intensities")
     ranges = np.ptp(frames, axis=(1, 2))
-    for t in np.flatnonzero(ranges == 0)[:1]:
+    if np.any(ranges == 0):
+        t = int(np.argmax(ranges == 0))
         _fail(path, f"frame {t}", f"a constant image (all {frames[t].flat[0]:g})",
               "an image with some contrast (the method needs image gradients)")
     # squared gradients of values this small (large) underflow (overflow) in float64

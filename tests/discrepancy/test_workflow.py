@@ -98,14 +98,16 @@ def test_the_detection_limit_follows_the_noise_and_is_mentioned_when_nothing_is_
     data = regression.prepare(clean_trajectory)
     fit = regression.fit(data, np.arange(5, 90, 5))
     mask = np.zeros((data.n_frames, data.x.shape[1]), dtype=bool)
-    mask[:24] = True                       # 24 x 289 particle-frames
+    mask[:24] = True   # 24 frames; the pinned particles in it do not count (the fit's
+    mask[40] = True    # masks never hold them), nor do frames outside the fit's frames
+    free = int(data.free.sum())
     limit = detection_limit(data, mask, 1e-3, np.arange(30))
     # a fit through the constraint has no mask: the free particles of the frames count
     empty = detection_limit(data, np.zeros_like(mask), 1e-3, np.arange(30))
-    assert empty["particle_frames"] == 30 * int(data.free.sum())
-    assert limit["particle_frames"] == 24 * 289
+    assert empty["particle_frames"] == 30 * free
+    assert limit["particle_frames"] == 24 * free
     assert limit["displacement_h"] == pytest.approx(
-        DETECTION_SNR * np.sqrt(6) * 1e-3 / np.sqrt(24 * 289))
+        DETECTION_SNR * np.sqrt(6) * 1e-3 / np.sqrt(24 * free))
     weight_step = data.scene.dt ** 2 * 9.81 / data.h    # one step of free fall, in h
     assert limit["share_of_weight"] == pytest.approx(limit["displacement_h"] / weight_step)
     located = {"mask_dropped": False, "noise_sigma_h": 1e-3}

@@ -138,15 +138,17 @@ def identify(trajectory, *, model="5", rng=None, budget=None, method="structured
     Raises
     ------
     InputError
-        A ``trajectory`` that is not a :class:`~replication.cloth.io.Trajectory`, a
+        A ``trajectory`` that is not a :class:`~replication.cloth.io.Trajectory` or fails
+        the reader's checks (:func:`~replication.cloth.io.check_trajectory`), a
         ``budget`` that is not a positive integer, an unknown ``model`` or ``method``.
     """
-    from replication.cloth.io import Trajectory
+    from replication.cloth.io import Trajectory, check_trajectory
 
     check(isinstance(trajectory, Trajectory),
           f"trajectory: a {type(trajectory).__name__}; expected a Trajectory (read a file "
           "with replication.cloth.io.read_trajectory(path), which also validates it)")
-    check(str(model) in ("5", "18"), f"model={model!r}: expected '5' or '18'")
+    trajectory = check_trajectory(trajectory)   # one made in memory is checked as a file is
+    check(str(model) in problem.MODELS, f"model={model!r}: expected '5' or '18'")
     model = str(model)
     check(budget is None or (isinstance(budget, (int, np.integer))
                              and not isinstance(budget, bool) and budget >= 1),

@@ -16,7 +16,7 @@ from replication.cloth import regression
 from replication.cloth.costs import ClothCost, make_cost
 from replication.cloth.mesh import FAMILY_OF_TYPE, N_TYPES, type_lengths
 from replication.cloth.model import PARAM_NAMES_5, PARAM_NAMES_18, params_from_vectors, step
-from replication.cloth.noise import SIGMA_FLOOR_H, noise_sigma
+from replication.cloth.noise import SIGMA_FLOOR_H, excess_power, noise_sigma
 from replication.errors import InputError, check
 from replication.optim.objective import Objective
 
@@ -200,15 +200,7 @@ def diagnose(cost, best, space):
       and the stiffnesses whose doubling or halving changes the cost by less than about
       8 x ``6 noise^2`` (normalised like the cost, whose velocity errors repeat the
       position errors): the data do not show their force.
-    - ``noise_h``: position noise (units of ``h``, floored at ``SIGMA_FLOOR_H``) estimated
-      from the one-step residuals of ``best`` (:func:`replication.cloth.regression.
-      residuals`) on the cost's frames and ``_MARGIN`` frames around them, over the
-      particle-frames the constraint leaves alone (:func:`~replication.cloth.regression.
-      constraint_mask`; :func:`replication.cloth.noise.noise_sigma`).
-    - ``misfit``: the mean squared residual of every free particle over the ``6 noise^2``
-      that white noise alone gives: near 1 (or below) when the model explains the data up
-      to noise, far above for a local optimum, data in other units, or an effect the
-      model lacks.
+    - ``noise_h``, ``misfit`` and ``residual_frames``: :func:`residual_fit`.
 
     Parameters
     ----------
@@ -228,19 +220,7 @@ def diagnose(cost, best, space):
     costs = cost(params_from_vectors(X))
     undetermined = [space.names[i] for row, i in enumerate(taus, start=1)
                     if costs[row] == costs[0]]
-    data = regression.prepare(cost.trajectory)
-    params = params_from_vectors(best[None, :])
-    base = regression.BaseModel(params.rest[0], params.k[0], params.tau[0])
-    frames = np.arange(max(int(cost.frames.min()) - _MARGIN, 0),
-                       min(int(cost.frames.max()) + _MARGIN, data.n_frames - 2) + 1)
-    r = regression.residuals(data, base, (), frames)
-    masked = regression.usable_frames(frames, data.n_frames)
-    mask = np.zeros(r.shape[:2], dtype=bool)
-    if masked.size:
-        mask[np.isin(frames, masked)] = regression.constraint_mask(
-            data, base, (), masked, noisy=True)[masked]
-    sigma = max(noise_sigma(r, frames, data.free, mask if mask.any() else None),
-                SIGMA_FLOOR_H * data.h)
+    sigma, fit = _residual_fit(cost, best)
     # a stiffness is not determined when doubling or halving it changes the cost by less
     # than one parameter's chi-square threshold (about 4) times the noise of a residual
     # (6 sigma^2 per coordinate, normalised as the cost is), counted twice: with
@@ -250,11 +230,47 @@ def diagnose(cost, best, space):
     changes = np.abs(costs[1 + len(taus):] - costs[0]).reshape(-1, 2).max(axis=1)
     undetermined += [space.names[i] for i, change in zip(stiff, changes)
                      if not change > threshold]
-    mean_square = float(np.mean(r[:, data.free] ** 2))
-    return {"undetermined": undetermined, "noise_h": sigma / data.h,
-            "misfit": mean_square / (6.0 * sigma ** 2) if np.isfinite(mean_square)
-            else float("inf"),
-            "residual_frames": [int(frames[0]), int(frames[-1])]}
+    return {"undetermined": undetermined, **fit}
+
+
+def residual_fit(cost, best):
+    """How well the model at ``best`` explains the data around the cost's frames
+    (JSON-ready):
+
+    - ``noise_h``: position noise (units of ``h``, floored at ``SIGMA_FLOOR_H``) estimated
+      from the one-step residuals of ``best`` (:func:`replication.cloth.regression.
+      residuals`) on the cost's frames and ``_MARGIN`` frames around them, over the
+      particle-frames the constraint leaves alone (:func:`~replication.cloth.regression.
+      constraint_mask`; :func:`replication.cloth.noise.noise_sigma`).
+    - ``misfit``: the mean squared residual of every free particle over the ``6 noise^2``
+      that white noise alone gives (:func:`replication.cloth.noise.excess_power`): near 1
+      (or below) when the model explains the data up to noise, far above for a local
+      optimum, data in other units, or an effect the model lacks.
+    - ``residual_frames``: the first and last frame of those residuals.
+
+    Parameters
+    ----------
+    cost : ClothCost
+    best : (n_var,) array_like
+    """
+    return _residual_fit(cost, np.asarray(best, dtype=float))[1]
+
+
+def _residual_fit(cost, best):
+    """``(sigma, residual_fit dict)``: :func:`residual_fit` and the noise in length units."""
+    data = regression.prepare(cost.trajectory)
+    params = params_from_vectors(best[None, :])
+    base = regression.BaseModel(params.rest[0], params.k[0], params.tau[0])
+    frames = np.arange(max(int(cost.frames.min()) - _MARGIN, 0),
+                       min(int(cost.frames.max()) + _MARGIN, data.n_frames - 2) + 1)
+    r = regression.residuals(data, base, (), frames)
+    masked = regression.usable_frames(frames, data.n_frames)
+    mask = (regression.constraint_mask(data, base, (), masked, noisy=True)[frames]
+            if masked.size else np.zeros(r.shape[:2], dtype=bool))
+    sigma = max(noise_sigma(r, frames, data.free, mask if mask.any() else None),
+                SIGMA_FLOOR_H * data.h)
+    return sigma, {"noise_h": sigma / data.h, "misfit": excess_power(r, data.free, sigma),
+                   "residual_frames": [int(frames[0]), int(frames[-1])]}
 
 
 def diagnostic_warnings(diagnostics, best, names):

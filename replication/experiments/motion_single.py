@@ -30,8 +30,29 @@ def check_motion(sequence):
                          "are identical; expected a sequence in which something turns")
 
 
+def check_border(sequence, sigma):
+    """Refuse frames too small to keep a pixel inside the border that smoothing by
+    ``sigma`` leaves invalid (named by the sequence's source)."""
+    from replication.motion.derivatives import default_border
+
+    border = default_border(sigma)
+    height, width = sequence.frames.shape[1:]
+    if min(height, width) < 2 * border + 1:
+        raise InputError(f"{sequence.source}: frames of {height} x {width} pixels: no pixel "
+                         f"inside the {border}-pixel border that smoothing (sigma={sigma:g}) "
+                         f"leaves invalid; expected frames of at least {2 * border + 1} x "
+                         f"{2 * border + 1} pixels")
+
+
 # the refined centre this many frame sizes away: a translation, not a rotation in view
 FAR_CENTRE = 10.0
+# the best peak this many cells from the accumulator's border is "at the edge" (the peak
+# of a centre outside it shows as a slope cut off a few cells inside)
+EDGE_CELLS = 3.0
+# irc and irc_refined disagree when their centres are further apart than this many pixels
+# (and this many cells), or their omegas by more than this fraction: the best peak's own
+# bias is a few % in omega and about a pixel in the centre (REPORT.md)
+DISAGREE_PX, DISAGREE_CELLS, DISAGREE_OMEGA = 10.0, 3.0, 0.25
 
 
 def answer_warnings(paper, refined, settings, grid=None, shape=None):
@@ -46,13 +67,26 @@ def answer_warnings(paper, refined, settings, grid=None, shape=None):
         warnings.append(f"irc.omega={paper['omega']:.4g} is at the edge of the sweep "
                         f"[{low:g}, {high:g}]: the rotation may lie outside it (widen "
                         "method.omega_min/omega_max)")
-    if grid is not None:
-        right, bottom = grid.centre(grid.ny - 1, grid.nx - 1)
-        if (min(abs(paper["xi"] - grid.x0), abs(paper["xi"] - right)) < grid.cell / 2
-                or min(abs(paper["eta"] - grid.y0), abs(paper["eta"] - bottom)) < grid.cell / 2):
-            warnings.append(f"irc centre ({paper['xi']:.4g}, {paper['eta']:.4g}) is at the "
-                            "edge of the accumulator: the centre may lie outside it (widen "
-                            "method.margin)")
+    elif low < 0 < high and abs(paper["omega"]) < 1.5 * step:
+        warnings.append(f"irc.omega={paper['omega']:.4g} is within 1.5 steps ({step:.3g}) "
+                        "of 0, the sweep's inner edge: a slower rotation than the sweep "
+                        "resolves gives a best peak of no meaning (a finer sweep, "
+                        "method.omega_count, resolves it)")
+    if grid is not None and grid.near_edge(paper["xi"], paper["eta"], EDGE_CELLS):
+        warnings.append(f"irc centre ({paper['xi']:.4g}, {paper['eta']:.4g}) is at the "
+                        "edge of the accumulator: the centre may lie outside it (widen "
+                        "method.margin)")
+    if refined.get("pixels", 0) >= MIN_REFINE_PIXELS and np.all(
+            np.isfinite([refined["xi"], refined["eta"], refined["omega"]])):
+        apart = float(np.hypot(paper["xi"] - refined["xi"], paper["eta"] - refined["eta"]))
+        near = max(DISAGREE_PX, DISAGREE_CELLS * (grid.cell if grid is not None else 1.0))
+        if apart > near or abs(paper["omega"] - refined["omega"]) > \
+                DISAGREE_OMEGA * abs(refined["omega"]):
+            warnings.append(f"irc and irc_refined disagree: centres {apart:.3g} px apart, "
+                            f"omega {paper['omega']:.4g} against {refined['omega']:.4g}; at "
+                            "least one is wrong (a centre near or beyond the accumulator's "
+                            "edge, a rotation the sweep does not resolve, or noise): check "
+                            "the sequence and the other warnings before using either")
     if shape is not None and np.all(np.isfinite([refined["xi"], refined["eta"]])):
         height, width = shape
         away = float(np.hypot(refined["xi"] - (width - 1) / 2, refined["eta"] - (height - 1) / 2))
@@ -63,7 +97,8 @@ def answer_warnings(paper, refined, settings, grid=None, shape=None):
                             "irc (the best peak) is then meaningless")
     if refined.get("pixels", 0) < MIN_REFINE_PIXELS:
         warnings.append(f"irc_refined: refinement on {refined.get('pixels', 0)} pixel(s), "
-                        f"fewer than {MIN_REFINE_PIXELS}: the refined estimate is not reliable")
+                        f"fewer than {MIN_REFINE_PIXELS}: the refined estimate is not reliable, "
+                        "and nothing confirms irc either (are the frames a rotation?)")
     if not low <= refined["omega"] <= high:
         warnings.append(f"irc_refined.omega={refined['omega']:.4g} is outside the sweep "
                         f"[{low:g}, {high:g}]")
@@ -187,6 +222,7 @@ def single_rotation(config, out):
     progress(f"{sequence.source}: {sequence.frames.shape[0]} frames of "
              f"{sequence.frames.shape[1]} x {sequence.frames.shape[2]}")
     check_motion(sequence)
+    check_border(sequence, settings["sigma"])
     if settings["accumulation"] == "exact":
         check_grid(sequence.frames.shape[1:], settings)
     single.warm_up()

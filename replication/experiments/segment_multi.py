@@ -98,6 +98,28 @@ def translation_warnings(frames, settings, pixels=None):
     return []
 
 
+def edge_warnings(found, settings):
+    """A warning per object whose centre is at the edge of its restricted accumulation
+    (the region's bounding box plus ``accumulation.window``, within the image plus
+    ``ea.margin``): the centre may lie outside it, as for a whole view turning about a
+    point beyond the frame. With a pyramid the check is on its top level, where the
+    accumulation ran."""
+    from replication.experiments.motion_single import EDGE_CELLS
+
+    top = found["pyramid"]["top_objects"] if "pyramid" in found else found["objects"]
+    warnings = []
+    for k, (item, shown) in enumerate(zip(top, found["objects"])):
+        grid = item.get("grid")
+        if grid is not None and grid.near_edge(item["xi"], item["eta"], EDGE_CELLS):
+            warnings.append(
+                f"object {k}: centre ({shown['xi']:.4g}, {shown['eta']:.4g}) is at the edge "
+                "of its accumulator (the region's box plus method.accumulation.window="
+                f"{settings['accumulation']['window']:g} px, within the image plus "
+                f"method.ea.margin={settings['ea']['margin']:g} px): the centre may lie "
+                "outside it (widen both)")
+    return warnings
+
+
 def segment_sequence(config, out):
     """Paper 2.3 on one sequence: ``objects`` (one mask file each in ``out``), Figs. 5-7.
 
@@ -126,6 +148,18 @@ def segment_sequence(config, out):
         check(not unlabelled, f"{sequence.source}: truth object {unlabelled[:1]} has no "
                               "'label'; expected the label value of each object (scoring "
                               "against the labels needs it)")
+        present = np.unique(sequence.labels[0])
+        absent = [item["label"] for item in sequence.truth["objects"]
+                  if item["label"] not in present]
+        check(not absent, f"{sequence.source}: truth label {absent[0] if absent else ''}: no "
+                          "pixel of the first label image has it (values: "
+                          f"{', '.join(str(v) for v in present[:10])}); expected the label "
+                          "value of each object's pixels (scoring would count the object as "
+                          "not found)")
+    from replication.experiments.motion_single import check_border, check_motion
+
+    check_motion(sequence)
+    check_border(sequence, settings["ea"]["sigma"])
     start = time.perf_counter()
     found = segmentation.segment(sequence.frames, settings, int(config["seed"]))
     seconds = time.perf_counter() - start
@@ -138,6 +172,7 @@ def segment_sequence(config, out):
     # without a pyramid the segmentation's pixels are these derivatives (same settings)
     result["warnings"] = translation_warnings(
         sequence.frames, settings, None if "pyramid" in found else found["pixels"])
+    result["warnings"] += edge_warnings(found, settings)
     if "pyramid" in found:
         result["pyramid"] = {"factor": found["pyramid"]["factor"],
                              "shapes": found["pyramid"]["shapes"],

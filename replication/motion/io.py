@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import logging
+import re
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -198,11 +199,23 @@ def _read_video(path):
     return np.stack(images)
 
 
+def _number_order(path):
+    """Sort key of a file name with its digit runs read as numbers (frame_2 < frame_10)."""
+    return [(0, int(part), "") if part.isdigit() else (1, 0, part)
+            for part in re.split(r"(\d+)", path.name)]
+
+
 def _frame_files(folder):
     files = sorted(p for p in folder.iterdir()
                    if p.suffix.lower() in FRAME_SUFFIXES and not p.name.startswith("labels_"))
     labels = sorted(p for p in folder.iterdir()
                     if p.name.startswith("labels_") and p.suffix.lower() == ".png")
+    by_number = sorted(files, key=_number_order)
+    if by_number != files:
+        first = next(i for i, (a, b) in enumerate(zip(files, by_number)) if a != b)
+        _note(folder, "frame names hold numbers of different lengths, read in name order "
+              f"({files[first].name} before {by_number[first].name}), not number order; pad "
+              "the numbers (frame_002.png) if that is not the time order")
     return files, labels
 
 
@@ -258,6 +271,10 @@ def _parse_truth(path, text):
     if not isinstance(truth, dict) or not isinstance(truth.get("objects", []), list):
         _fail(path, "truth", "JSON without an 'objects' list",
               '{"objects": [{"label", "xi", "eta", "omega"}]}')
+    if "objects" not in truth and truth:
+        _note(path, f"the truth has no 'objects' (keys: {', '.join(sorted(truth))}), so "
+              "nothing is scored; expected {\"objects\": [{\"label\", \"xi\", \"eta\", "
+              "\"omega\"}]}")
     for item in truth.get("objects", []):
         missing = [k for k in ("xi", "eta", "omega") if not isinstance(item, dict) or k not in item]
         if missing:

@@ -43,6 +43,14 @@ class Grid:
         """``(xi, eta)`` of cell ``(j, i)``."""
         return self.x0 + i * self.cell, self.y0 + j * self.cell
 
+    def near_edge(self, x, y, cells=0.5):
+        """Whether ``(x, y)`` lies within ``cells`` cells of the grid's border (a peak
+        there may be the cut-off slope of one outside the grid)."""
+        right, bottom = self.centre(self.ny - 1, self.nx - 1)
+        reach = cells * self.cell
+        return bool(min(abs(x - self.x0), abs(x - right)) < reach
+                    or min(abs(y - self.y0), abs(y - bottom)) < reach)
+
 
 def image_grid(shape, *, margin=0.0, cell=1.0):
     """Accumulator covering the image ``shape = (H, W)`` plus ``margin`` pixels each side."""

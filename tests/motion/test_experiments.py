@@ -2,6 +2,7 @@
 
 import re
 
+import numpy as np
 import pytest
 
 from replication.errors import InputError
@@ -99,9 +100,36 @@ def test_answer_warnings_flag_a_translation_and_a_centre_at_the_accumulator_edge
 
     top = pyramid.grid_in_input(grid, 4)
     last = float(pyramid.to_input(63.0, 4))
+    low = dict(inside, eta=last - 1.0)
     assert any("edge of the accumulator" in w for w in answer_warnings(
-        dict(inside, eta=last - 1.0), inside, settings, top, (256, 256)))
-    assert answer_warnings(dict(inside, eta=120.0), inside, settings, top, (256, 256)) == []
+        low, low, settings, top, (256, 256)))
+    middle = dict(inside, eta=120.0)
+    assert answer_warnings(middle, middle, settings, top, (256, 256)) == []
+
+
+def test_answer_warnings_flag_a_best_peak_the_refinement_does_not_confirm():
+    """An outside user's sequences: a centre beyond the accumulator whose best peak sat 2 px
+    inside its edge (62 px from the truth, which the refinement found), and a rotation of
+    3e-4 rad/frame, slower than the sweep resolves (best peak 19 px off); both went
+    without a warning."""
+    from replication.experiments.motion_single import answer_warnings
+    from replication.motion import irc, single
+
+    settings = single.settings_from(None)      # sweep -0.05..0.05, 100 values
+    grid = irc.image_grid((129, 257), margin=settings["margin"])
+    refined = {"xi": -60.0, "eta": 64.0, "omega": -0.015, "pixels": 5000}
+    peak = {"xi": grid.x0 + 2.0, "eta": 66.0, "omega": -0.028}
+    warned = answer_warnings(peak, refined, settings, grid, (129, 257))
+    assert any("edge of the accumulator" in w for w in warned)
+    assert any(w.startswith("irc and irc_refined disagree: centres 62") for w in warned)
+    slow = {"xi": 122.0, "eta": 67.0, "omega": 0.001}
+    warned = answer_warnings(slow, dict(slow, omega=0.0003, pixels=5000), settings, grid,
+                             (129, 257))
+    assert any("of 0, the sweep's inner edge" in w for w in warned)
+    # the best peak's usual bias (omega 9% fast, a pixel off) is not a disagreement
+    good = {"xi": 140.0, "eta": 62.0, "omega": 0.0327}
+    assert answer_warnings(good, dict(good, xi=141.0, omega=0.030, pixels=5000), settings,
+                           grid, (129, 257)) == []
 
 
 def test_accumulator_settings_that_cannot_work_are_refused():
@@ -118,3 +146,43 @@ def test_accumulator_settings_that_cannot_work_are_refused():
     grid = irc.image_grid((64, 64), margin=tiny["margin"], cell=tiny["cell"])
     with pytest.raises(InputError, match=f"accumulator of {grid.ny} x {grid.nx} cells"):
         check_grid((64, 64), tiny)
+
+
+def test_segment_multi_refuses_still_frames_and_truth_labels_absent_from_the_labels(tmp_path):
+    """An outside user's identical frames gave 'objects: []' (motion_single refuses them),
+    and truth labels 5 and 6 over masks of 1 and 2 scored both objects as not found."""
+    from replication.experiments.segment_multi import segment_sequence
+    from replication.motion.io import write_sequence_npz
+
+    still = np.repeat(np.random.default_rng(0).random((1, 64, 64)), 3, axis=0)
+    write_sequence_npz(tmp_path / "still.npz", still)
+    with pytest.raises(InputError, match="no motion found: all 3 frames are identical"):
+        segment_sequence({"seed": 0, "data": {"path": str(tmp_path / "still.npz")}},
+                         tmp_path / "out")
+    moving = np.random.default_rng(1).random((3, 64, 64))
+    labels = np.zeros((3, 64, 64), dtype=np.uint8)
+    labels[:, 10:20, 10:20] = 1
+    write_sequence_npz(tmp_path / "labelled.npz", moving, labels=labels, truth={
+        "objects": [{"label": 5, "xi": 15.0, "eta": 15.0, "omega": 0.02}]})
+    with pytest.raises(InputError, match=r"truth label 5: no pixel of the first label image "
+                                         r"has it \(values: 0, 1\)"):
+        segment_sequence({"seed": 0, "data": {"path": str(tmp_path / "labelled.npz")}},
+                         tmp_path / "out")
+    tiny = np.random.default_rng(2).random((3, 10, 10))
+    write_sequence_npz(tmp_path / "tiny.npz", tiny)
+    with pytest.raises(InputError, match=r"tiny.npz: frames of 10 x 10 pixels: no pixel"):
+        segment_sequence({"seed": 0, "data": {"path": str(tmp_path / "tiny.npz")}},
+                         tmp_path / "out")
+
+
+def test_segment_multi_warns_of_an_object_centre_at_its_accumulator_edge():
+    from replication.experiments.segment_multi import edge_warnings
+    from replication.motion import irc
+    from replication.motion.segment import pipeline
+
+    settings = pipeline.settings_from(None)
+    grid = irc.Grid(x0=-34.0, y0=-34.0, cell=1.0, nx=325, ny=197)
+    edge = {"xi": -34.0, "eta": 68.0, "grid": grid}
+    inside = {"xi": 100.0, "eta": 68.0, "grid": grid}
+    warned = edge_warnings({"objects": [inside, edge]}, settings)
+    assert len(warned) == 1 and warned[0].startswith("object 1: centre (-34, 68) is at the edge")

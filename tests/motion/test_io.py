@@ -145,3 +145,22 @@ def test_refuses_labels_of_another_shape(tmp_path):
     np.savez(tmp_path / "l.npz", frames=frames_like(), labels=np.zeros((2, 8, 8), np.uint8))
     with pytest.raises(InputError, match=r"labels: found shape \(2, 8, 8\)"):
         read_sequence(tmp_path / "l.npz")
+
+
+def test_notes_on_unpadded_frame_numbers_and_a_truth_without_objects(tmp_path, capsys):
+    """Both read as the docs say (name order; nothing scored), with a note: an outside
+    user's frame_0..frame_11 went in the order 0, 1, 10, 11, 2, ... and a misspelt
+    'object' key lost the scoring, both silently."""
+    folder = tmp_path / "seq"
+    folder.mkdir()
+    for i, frame in enumerate(frames_like(11)):
+        write_png(folder / f"frame_{i}.png", (frame * 255).astype(np.uint8))
+    read_sequence(folder)
+    assert "(frame_10.png before frame_2.png), not number order" in capsys.readouterr().err
+    padded = tmp_path / "padded"
+    write_sequence_folder(padded, frames_like(11))
+    (padded / "truth.json").write_text(json.dumps({"object": [{"xi": 1}]}))
+    sequence = read_sequence(padded)
+    err = capsys.readouterr().err
+    assert "number order" not in err and "the truth has no 'objects' (keys: object)" in err
+    assert sequence.truth == {"object": [{"xi": 1}]}

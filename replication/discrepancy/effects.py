@@ -137,6 +137,15 @@ def _profile_names(n=17):
     return tuple(f"row{r}" for r in range(n - 1)) + tuple(f"col{c}" for c in range(n - 1))
 
 
+def coefficient_names(effect, size):
+    """The names of the ``size`` coefficients ``effect`` has on a mesh: a mass profile has
+    ``2 (n - 1)`` of them on an ``n x n`` mesh (``row0..``, ``col0..``; the library entry
+    lists the 17 x 17 contract's), every other effect its fixed ``coefficients``."""
+    if effect.name == "nonuniform_mass":
+        return _profile_names(size // 2 + 1)
+    return effect.coefficients
+
+
 LIBRARY = {
     effect.name: effect for effect in (
         Effect("linear_damping", ("c",), _linear_damping, _scalar("c"), (0,),

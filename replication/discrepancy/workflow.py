@@ -336,6 +336,9 @@ SAME_DIRECTIONS = 3.0          # anisotropic stiffness with |dk_j - dk_i| under 
 DETECTION_SNR = 30.0
 MENTION_LIMIT = 0.01           # warn when the limit is above this share of the weight
 LIMIT_CAVEAT = "nothing is named"   # how the detection-limit warning starts
+# with nothing named and nothing unexplained, base-fit residuals this many times what the
+# noise explains (over every free particle-frame, the constrained ones included) are warned
+QUIET_EXCESS = 10.0
 
 
 def detection_limit(data, mask, sigma_h, frames):
@@ -393,6 +396,15 @@ def _warnings(data, base_fit, located, named_effects, gap_before, gap_after, lim
             f"the named effect(s) shrink the held-out rollout gap only "
             f"{gap_before / gap_after:.3g}-fold ({gap_before:.3g} -> {gap_after:.3g} h): "
             "treat the name(s) as tentative; an effect outside the library may be acting")
+    excess = located.get("excess_power", 0.0)
+    if not named_effects and unexplained is None and excess > QUIET_EXCESS:
+        warnings.append(
+            f"nothing is named or unexplained, yet the base model's one-step residuals are "
+            f"{excess:.3g} x what the noise explains, with no structure on the particle-"
+            "frames the constraint leaves alone (all the structure test reads): the misfit "
+            "is where the constraint acts (a tau the base fit misses) or has no structure "
+            "(frames out of order, another dt); 'nothing missing' holds only outside the "
+            "constraint")
     if (limit is not None and not named_effects and unexplained is None
             and limit["share_of_weight"] > MENTION_LIMIT):
         warnings.append(
@@ -425,13 +437,13 @@ def _warnings(data, base_fit, located, named_effects, gap_before, gap_after, lim
 def _describe(effect_fit, name, evidence, model):
     effect = fx.get_effect(name)
     theta = effect_fit.term(name)
+    names = fx.coefficient_names(effect, theta.size)
     base = {"k": effect_fit.base.k.tolist()}
     covariance = _covariance(effect_fit, name, model)
     errors = (None if covariance is None else
-              dict(zip(effect.coefficients,
-                       np.sqrt(np.maximum(np.diag(covariance), 0.0)).tolist())))
+              dict(zip(names, np.sqrt(np.maximum(np.diag(covariance), 0.0)).tolist())))
     return {"name": name,
-            "parameters": {"coefficients": dict(zip(effect.coefficients, theta.tolist())),
+            "parameters": {"coefficients": dict(zip(names, theta.tolist())),
                            "standard_errors": errors,
                            "covariance": (None if covariance is None
                                           else covariance.tolist()),

@@ -232,3 +232,37 @@ def test_the_warned_detection_limit_is_the_outside_study_s():
 
     study = yaml.safe_load(open("configs/experiment/discrepancy_outside.yaml"))["study"]
     assert DETECTION_SNR == study["detection_snr"]
+
+
+def test_a_base_misfit_without_structure_is_warned_when_nothing_is_named(clean_trajectory):
+    """An outside user's reversed reference (and a noise-free 25 x 25 sheet whose base tau
+    was 3e-4 off) got 'nothing missing' with no warning, their residuals 5e4 x the noise
+    lying where the constraint acts or without structure."""
+    from replication.cloth import regression
+    from replication.discrepancy.workflow import QUIET_EXCESS, _warnings
+
+    data = regression.prepare(clean_trajectory)
+    fit = regression.fit(data, np.arange(5, 90, 5))
+    quiet = {"mask_dropped": False, "excess_power": 5e4}
+    assert _warnings(data, fit, quiet, [], 1.0, 1.0)[0].startswith(
+        "nothing is named or unexplained, yet the base model's one-step residuals are "
+        "5e+04 x what the noise explains")
+    # at the noise floor, or with an effect named or structure unexplained: no such line
+    assert _warnings(data, fit, dict(quiet, excess_power=QUIET_EXCESS), [], 1.0, 1.0) == []
+    named = [{"name": "linear_damping", "parameters": {"coefficients": {"c": 1e-4}}}]
+    assert not any(w.startswith("nothing is named or") for w in
+                   _warnings(data, fit, quiet, named, 2.0, 1.0))
+    assert not any(w.startswith("nothing is named or") for w in
+                   _warnings(data, fit, quiet, [], 1.0, 1.0, unexplained={"Q": 9.0}))
+
+
+@pytest.mark.parametrize("n", [9, 12, 17, 25])
+def test_a_mass_profile_names_one_coefficient_per_row_and_column_of_any_mesh(n):
+    """The names were the 17 x 17 contract's on every mesh: on 12 x 12, 'row11..row15'
+    were columns; on 25 x 25, 16 of 48 coefficients were dropped."""
+    from replication.discrepancy.effects import coefficient_names, get_effect
+
+    names = coefficient_names(get_effect("nonuniform_mass"), 2 * (n - 1))
+    assert names == tuple(f"row{i}" for i in range(n - 1)) + tuple(
+        f"col{j}" for j in range(n - 1))
+    assert coefficient_names(get_effect("linear_damping"), 1) == ("c",)

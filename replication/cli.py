@@ -318,9 +318,45 @@ def _run_task(cfg):
         raise
 
 
-def _hydra_message(error):
-    """One line from a Hydra or OmegaConf refusal."""
+def _close_keys(key, overrides):
+    """Keys of the chosen experiment's config spelt like ``key`` (dotted), best first."""
+    import difflib
+
+    from hydra import compose, initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+
+    chosen = [o for o in overrides if o.split("=", 1)[0].lstrip("+~") == "experiment"]
+    if not chosen:
+        return []
+
+    def dotted(node, prefix=""):
+        for name, value in node.items():
+            yield prefix + str(name)
+            if isinstance(value, dict):
+                yield from dotted(value, f"{prefix}{name}.")
+    GlobalHydra.instance().clear()
+    try:
+        with initialize_config_dir(config_dir=CONFIG_DIR, version_base="1.3"):
+            config = OmegaConf.to_container(compose(config_name="config",
+                                                    overrides=chosen[-1:]))
+    except Exception:  # noqa: BLE001  (a hint only: no hint rather than another error)
+        return []
+    finally:
+        GlobalHydra.instance().clear()
+    return difflib.get_close_matches(key, list(dotted(config)), n=3, cutoff=0.75)
+
+
+def _hydra_message(error, overrides=()):
+    """One line from a Hydra or OmegaConf refusal (with the config's keys spelt like an
+    unknown one that ``overrides`` tried to set)."""
     text = str(error)
+    if text.startswith("Could not override '"):
+        key = text.split("'", 2)[1]
+        close = _close_keys(key, overrides)
+        if close:
+            return (f"Could not override '{key}': no such key; did you mean "
+                    f"{' or '.join(close)}? (+{key}=VALUE would add it as a new key, which "
+                    "the run ignores unless it reads it)")
     if "Could not find 'experiment/" in text:
         name = text.split("Could not find 'experiment/", 1)[1].split("'", 1)[0]
         return (f"experiment={name}: unknown experiment; expected one of "
@@ -409,7 +445,7 @@ def precheck(overrides):
                     compose(config_name="config", overrides=[f"experiment={name}"]),
                     resolve=True)
     except (HydraException, OmegaConfBaseException, ValueError) as error:
-        raise InputError(_hydra_message(error)) from None
+        raise InputError(_hydra_message(error, overrides)) from None
     if not config.get("runner"):
         raise InputError("no experiment chosen: pass experiment=NAME, one of "
                          + ", ".join(available_experiments()))
@@ -462,7 +498,7 @@ def compose_first_job(args):
         if config.get("runner"):
             _note_unread(overrides, defaults, config["name"])
     except (HydraException, OmegaConfBaseException, ValueError) as error:
-        raise InputError(_hydra_message(error)) from None
+        raise InputError(_hydra_message(error, list(args))) from None
     finally:
         GlobalHydra.instance().clear()
 

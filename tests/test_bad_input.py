@@ -238,6 +238,8 @@ CONFIG_CASES = [
     ("fig08_mesh", ["force=yes"], "force='yes': expected true or false"),
     ("fig08_mesh", ["zoom=abc"], "zoom='abc': expected an integer"),
     ("fig08_mesh", ["foo=1"], "Could not override 'foo'"),
+    ("cloth_identify", ["data.pth=x.npz"],
+     "Could not override 'data.pth': no such key; did you mean data.path?"),
     ("fig08_mesh", ["limits.max_seconds=-1"], "limits.max_seconds=-1: expected a number > 0"),
     ("fig08_mesh", ["+limits.foo=1"], "limits.foo: unknown limit"),
     ("fig08_mesh", ["data.path=''"], "data.path='': expected a file or folder path"),
@@ -294,6 +296,7 @@ def test_out_empty_or_inside_results_is_refused(tmp_path, capsys, monkeypatch, o
 
 @pytest.mark.parametrize("args, message", [
     (["experiment=fig08_mesh", "foo=1,2"], "Could not override 'foo'"),
+    (["experiment=cloth_identify", "budgett=1,2"], "did you mean budget?"),
     (["experiment=nope", "seed=0,1"], "experiment=nope: unknown experiment"),
     (["experiment=fig08_mesh", "seed=0,1", "zoom=abc"], "zoom='abc': expected an integer"),
     (["experiment=fig08_mesh", "seed=0,abc"], "seed='abc': expected an integer >= 0"),

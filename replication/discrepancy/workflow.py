@@ -131,7 +131,8 @@ def _state(context, names, base_fit):
             "sigma": _scaled_q(data, r, frames, context["settings"], mask)[1],
             "gap": {"rollout": rollout_error(data, fit, context["held"],
                                              start=context["start"]),
-                    "one_step": one_step_error(data, fit, context["held"])}}
+                    "one_step": one_step_error(data, fit, context["held"]),
+                    "rollout_start": context["start"]}}
 
 
 def _forward(context, state, banned, tried, rounds, attempt):

@@ -76,6 +76,17 @@ def test_noise_is_estimated_and_warned_about_above_the_warning_level(runs):
         assert found["misfit"] < 2.0
 
 
+def test_frames_out_of_order_are_warned_as_meaningless(runs):
+    """An outside user's shuffled frames came out as 'noise of about 2.8 h ... expect errors
+    of several %', as if the answer were only biased."""
+    shuffled = runs[0.01][np.random.default_rng(0).permutation(len(runs[0.01]))]
+    shuffled[:, [0, N - 1]] = runs[0.01][:1, [0, N - 1]]            # pins stay put
+    found, warnings = _diagnose(_write(runs["folder"] / "shuffled.npz", shuffled), 4.0, 0.01)
+    assert found["noise_h"] > 0.1
+    assert any("the answer means nothing" in w for w in warnings)
+    assert not any("expect errors of several %" in w for w in warnings)
+
+
 def test_data_in_other_units_are_reported_as_not_explained(runs):
     # the recorded time step is written 10 x too long: no parameters make the model fit
     wrong = _write(runs["folder"] / "dt.npz", runs[0.01], dt=0.02)

@@ -187,6 +187,7 @@ def cloth_objective(cost, space, *, budget=None, with_residuals=False):
 
 # what an answer's diagnostics warn about (docs/experiments.md, "Warnings of an answer")
 NOISE_WARN_H = 3e-4   # estimated position noise (units of h) above which answers are biased
+MEANINGLESS_NOISE_H = 0.1   # ... above which the frames show no motion step to step
 MISFIT_WARN = 3.0     # residuals this many times what the estimated noise explains
 _MARGIN = 10          # frames on each side of the cost's frames for the residual check
 
@@ -294,7 +295,14 @@ def diagnostic_warnings(diagnostics, best, names):
             f"{diagnostics['misfit']:.3g} x what the position noise explains: the answer "
             "is off (approximate, or a local optimum), the data are in other units or "
             "another dt, or the model lacks an effect (the discrepancy workflow finds which)")
-    if diagnostics["noise_h"] > NOISE_WARN_H:
+    if diagnostics["noise_h"] > MEANINGLESS_NOISE_H:
+        warnings.append(
+            f"the positions carry noise of about {diagnostics['noise_h']:.2g} h (estimated "
+            f"from the residuals), more than {MEANINGLESS_NOISE_H:g} of a spring: the frames "
+            "do not show one cloth's motion step to step (frames out of order or from "
+            "different runs, another dt, positions in other units?); the answer means "
+            "nothing")
+    elif diagnostics["noise_h"] > NOISE_WARN_H:
         warnings.append(
             f"the positions carry noise of about {diagnostics['noise_h']:.2g} h (estimated "
             "from the residuals): the one-step cost is biased under noise, expect errors "

@@ -397,15 +397,16 @@ def _warnings(data, base_fit, located, named_effects, gap_before, gap_after, lim
             f"the named effect(s) shrink the held-out rollout gap only "
             f"{gap_before / gap_after:.3g}-fold ({gap_before:.3g} -> {gap_after:.3g} h): "
             "treat the name(s) as tentative; an effect outside the library may be acting")
+    # (not worded like LIMIT_CAVEAT: the outside study tells the caveat from warnings by it)
     excess = located.get("excess_power", 0.0)
     if not named_effects and unexplained is None and excess > QUIET_EXCESS:
         warnings.append(
-            f"nothing is named or unexplained, yet the base model's one-step residuals are "
-            f"{excess:.3g} x what the noise explains, with no structure on the particle-"
-            "frames the constraint leaves alone (all the structure test reads): the misfit "
-            "is where the constraint acts (a tau the base fit misses) or has no structure "
-            "(frames out of order, another dt); 'nothing missing' holds only outside the "
-            "constraint")
+            f"the base model's one-step residuals are {excess:.3g} x what the noise "
+            "explains, yet nothing is named or unexplained: there is no structure on the "
+            "particle-frames the constraint leaves alone (all the structure test reads), so "
+            "the misfit is where the constraint acts (a tau the base fit misses) or has no "
+            "structure (frames out of order, another dt); 'nothing missing' holds only "
+            "outside the constraint")
     if (limit is not None and not named_effects and unexplained is None
             and limit["share_of_weight"] > MENTION_LIMIT):
         warnings.append(

@@ -15,7 +15,7 @@ import numpy as np
 
 from replication.errors import check
 from replication.motion import baselines, irc, single
-from replication.motion.derivatives import sequence_derivatives
+from replication.motion.derivatives import default_border, sequence_derivatives
 from replication.motion.io import (
     read_manifest_sequences,
     read_sequence,
@@ -112,6 +112,31 @@ def _check_settings(settings):
     check(settings["cell"] > 0, f"cell={settings['cell']}: expected > 0 pixels")
     check(settings["margin"] >= 0, f"method.margin={settings['margin']}: expected >= 0 "
                                    "pixels (the accumulator covers the image and more)")
+
+
+# the best peak this many cells from the accumulator's border is "at the edge" (the peak
+# of a centre outside it shows as a slope cut off a few cells inside)
+EDGE_CELLS = 3.0
+
+
+def check_motion(sequence):
+    """Refuse a sequence whose frames are all identical: there is no motion to find."""
+    frames = sequence.frames
+    change = np.abs(np.diff(frames, axis=0)).reshape(frames.shape[0] - 1, -1).max(axis=1)
+    check(np.any(change > 0), f"{sequence.source}: no motion found: all {frames.shape[0]} "
+                              "frames are identical; expected a sequence in which something "
+                              "turns")
+
+
+def check_border(sequence, sigma):
+    """Refuse frames too small to keep a pixel inside the border that smoothing by
+    ``sigma`` leaves invalid (named by the sequence's source)."""
+    border = default_border(sigma)
+    height, width = sequence.frames.shape[1:]
+    check(min(height, width) >= 2 * border + 1,
+          f"{sequence.source}: frames of {height} x {width} pixels: no pixel inside the "
+          f"{border}-pixel border that smoothing (sigma={sigma:g}) leaves invalid; expected "
+          f"frames of at least {2 * border + 1} x {2 * border + 1} pixels")
 
 
 def check_grid(shape, settings):

@@ -11,8 +11,15 @@ from pathlib import Path
 
 import numpy as np
 
-from replication.errors import InputError
-from replication.experiments.motion import _check_settings, _load, _truth_of, check_grid
+from replication.experiments.motion import (
+    EDGE_CELLS,
+    _check_settings,
+    _load,
+    _truth_of,
+    check_border,
+    check_grid,
+    check_motion,
+)
 from replication.motion import baselines, irc, pyramid, single
 from replication.motion.derivatives import sequence_derivatives
 from replication.progress import bar, progress
@@ -21,34 +28,8 @@ from replication.progress import bar, progress
 MIN_REFINE_PIXELS = 100
 
 
-def check_motion(sequence):
-    """Refuse a sequence whose frames are all identical: there is no motion to find."""
-    frames = sequence.frames
-    change = np.abs(np.diff(frames, axis=0)).reshape(frames.shape[0] - 1, -1).max(axis=1)
-    if not np.any(change > 0):
-        raise InputError(f"{sequence.source}: no motion found: all {frames.shape[0]} frames "
-                         "are identical; expected a sequence in which something turns")
-
-
-def check_border(sequence, sigma):
-    """Refuse frames too small to keep a pixel inside the border that smoothing by
-    ``sigma`` leaves invalid (named by the sequence's source)."""
-    from replication.motion.derivatives import default_border
-
-    border = default_border(sigma)
-    height, width = sequence.frames.shape[1:]
-    if min(height, width) < 2 * border + 1:
-        raise InputError(f"{sequence.source}: frames of {height} x {width} pixels: no pixel "
-                         f"inside the {border}-pixel border that smoothing (sigma={sigma:g}) "
-                         f"leaves invalid; expected frames of at least {2 * border + 1} x "
-                         f"{2 * border + 1} pixels")
-
-
 # the refined centre this many frame sizes away: a translation, not a rotation in view
 FAR_CENTRE = 10.0
-# the best peak this many cells from the accumulator's border is "at the edge" (the peak
-# of a centre outside it shows as a slope cut off a few cells inside)
-EDGE_CELLS = 3.0
 # irc and irc_refined disagree when their centres are further apart than this many pixels
 # (and this many cells), or their omegas by more than this fraction: the best peak's own
 # bias is a few % in omega and about a pixel in the centre (REPORT.md)

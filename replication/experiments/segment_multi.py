@@ -104,7 +104,7 @@ def edge_warnings(found, settings):
     ``ea.margin``): the centre may lie outside it, as for a whole view turning about a
     point beyond the frame. With a pyramid the check is on its top level, where the
     accumulation ran."""
-    from replication.experiments.motion_single import EDGE_CELLS
+    from replication.experiments.motion import EDGE_CELLS
 
     top = found["pyramid"]["top_objects"] if "pyramid" in found else found["objects"]
     warnings = []
@@ -156,7 +156,7 @@ def segment_sequence(config, out):
                           f"{', '.join(str(v) for v in present[:10])}); expected the label "
                           "value of each object's pixels (scoring would count the object as "
                           "not found)")
-    from replication.experiments.motion_single import check_border, check_motion
+    from replication.experiments.motion import check_border, check_motion
 
     check_motion(sequence)
     check_border(sequence, settings["ea"]["sigma"])

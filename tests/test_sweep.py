@@ -29,9 +29,10 @@ def test_multirun_resume_and_gather(tmp_path):
     assert again.returncode == 0, again.stderr
     assert again.stderr.count("up to date") == 2
     assert [p.read_text() for p in results] == before
-    # progress output and force change no result, so they name no folder: resumed, not
-    # redone
-    quiet = run_cli(*args, "resume=true", "progress=none", "force=true")
+    # progress output, force and the limits change no result, so they name no folder:
+    # resumed, not redone
+    quiet = run_cli(*args, "resume=true", "progress=none", "force=true",
+                    "limits.max_seconds=600")
     assert quiet.returncode == 0, quiet.stderr
     assert sorted(sweep.rglob("result.json")) == results
     assert [p.read_text() for p in results] == before
@@ -158,3 +159,15 @@ def test_run_killed_halfway_leaves_no_result(tmp_path):
     process.wait()
     assert not (out / "result.json").exists()
     assert not [p for p in Path(out).iterdir() if p.name.startswith(".result.json")]
+
+
+def test_every_limit_is_left_out_of_sweep_folder_names():
+    """Hydra leaves a key out of run-folder names only by its full key: each limit is
+    listed (a new limit must be too)."""
+    from omegaconf import OmegaConf
+
+    from replication.guard import DEFAULT_LIMITS
+
+    excluded = OmegaConf.load(ROOT / "configs" / "config.yaml").hydra.job.config\
+        .override_dirname.exclude_keys
+    assert {f"limits.{key}" for key in DEFAULT_LIMITS} <= set(excluded)

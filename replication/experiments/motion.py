@@ -15,7 +15,7 @@ import numpy as np
 
 from replication.errors import check
 from replication.motion import baselines, irc, single
-from replication.motion.derivatives import default_border, sequence_derivatives
+from replication.motion.derivatives import default_border, sequence_derivatives, too_small
 from replication.motion.io import (
     read_manifest_sequences,
     read_sequence,
@@ -132,11 +132,8 @@ def check_border(sequence, sigma):
     """Refuse frames too small to keep a pixel inside the border that smoothing by
     ``sigma`` leaves invalid (named by the sequence's source)."""
     border = default_border(sigma)
-    height, width = sequence.frames.shape[1:]
-    check(min(height, width) >= 2 * border + 1,
-          f"{sequence.source}: frames of {height} x {width} pixels: no pixel inside the "
-          f"{border}-pixel border that smoothing (sigma={sigma:g}) leaves invalid; expected "
-          f"frames of at least {2 * border + 1} x {2 * border + 1} pixels")
+    check(min(sequence.frames.shape[1:]) >= 2 * border + 1,
+          f"{sequence.source}: {too_small(sequence.frames.shape[1:], border, sigma)}")
 
 
 def check_grid(shape, settings):

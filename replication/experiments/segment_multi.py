@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from replication.errors import check
+from replication.experiments.motion import EDGE_CELLS, check_border, check_motion
 from replication.experiments.segment import _load, score_objects
 from replication.progress import progress
 
@@ -104,8 +105,6 @@ def edge_warnings(found, settings):
     ``ea.margin``): the centre may lie outside it, as for a whole view turning about a
     point beyond the frame. With a pyramid the check is on its top level, where the
     accumulation ran."""
-    from replication.experiments.motion import EDGE_CELLS
-
     top = found["pyramid"]["top_objects"] if "pyramid" in found else found["objects"]
     warnings = []
     for k, (item, shown) in enumerate(zip(top, found["objects"])):
@@ -142,8 +141,10 @@ def segment_sequence(config, out):
     sequence, default = _load(config)
     progress(f"{sequence.source}: {sequence.frames.shape[0]} frames of "
              f"{sequence.frames.shape[1]} x {sequence.frames.shape[2]}")
-    if sequence.truth and sequence.labels is not None:
-        unlabelled = [i for i, item in enumerate(sequence.truth.get("objects", []))
+    # scored: truth objects (a truth without 'objects' scores nothing) and labels
+    scored = "objects" in (sequence.truth or {}) and sequence.labels is not None
+    if scored:
+        unlabelled = [i for i, item in enumerate(sequence.truth["objects"])
                       if "label" not in item]
         check(not unlabelled, f"{sequence.source}: truth object {unlabelled[:1]} has no "
                               "'label'; expected the label value of each object (scoring "
@@ -156,8 +157,6 @@ def segment_sequence(config, out):
                           f"{', '.join(str(v) for v in present[:10])}); expected the label "
                           "value of each object's pixels (scoring would count the object as "
                           "not found)")
-    from replication.experiments.motion import check_border, check_motion
-
     check_motion(sequence)
     check_border(sequence, settings["ea"]["sigma"])
     start = time.perf_counter()
@@ -178,7 +177,7 @@ def segment_sequence(config, out):
                              "shapes": found["pyramid"]["shapes"],
                              "objects": [{"top": item.get("top"), "levels": item.get("levels")}
                                          for item in found["objects"]]}
-    if sequence.truth and sequence.labels is not None:
+    if scored:
         result["truth"] = sequence.truth["objects"]
         result["score"] = score_objects(found["objects"], sequence.labels[0], sequence.truth)
     if config.get("figures", True):

@@ -73,6 +73,14 @@ def default_border(sigma):
     return int(math.ceil(3 * sigma)) + 1
 
 
+def too_small(shape, border, sigma):
+    """The refusal of frames of ``shape`` (H, W) that keep no pixel inside ``border``."""
+    height, width = shape
+    return (f"frames of {height} x {width} pixels: no pixel inside the {border}-pixel border "
+            f"that smoothing (sigma={sigma:g}) leaves invalid; expected frames of at least "
+            f"{2 * border + 1} x {2 * border + 1} pixels")
+
+
 def pair_derivatives(frame0, frame1, *, sigma=1.5, border=None):
     """``Ix, Iy, It`` of one frame pair and the mask of valid pixels.
 
@@ -143,10 +151,7 @@ def sequence_derivatives(frames, *, sigma=1.5, relative_threshold=0.15, border=N
                                              border=border)
         if not valid.any():
             b = default_border(sigma) if border is None else int(border)
-            raise InputError(
-                f"frames of {frames.shape[1]} x {frames.shape[2]} pixels: no pixel inside the "
-                f"{b}-pixel border that smoothing (sigma={sigma:g}) leaves invalid; expected "
-                f"frames of at least {2 * b + 1} x {2 * b + 1} pixels")
+            raise InputError(too_small(frames.shape[1:], b, sigma))
         norm = np.hypot(gx, gy)
         keep = valid & (norm >= gradient_threshold(norm, valid, relative=relative_threshold))
         keep &= norm > 0

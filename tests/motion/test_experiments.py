@@ -130,6 +130,9 @@ def test_answer_warnings_flag_a_best_peak_the_refinement_does_not_confirm():
     good = {"xi": 140.0, "eta": 62.0, "omega": 0.0327}
     assert answer_warnings(good, dict(good, xi=141.0, omega=0.030, pixels=5000), settings,
                            grid, (129, 257)) == []
+    # nor is its 33% on the finest textures (motion_omega_bias)
+    assert answer_warnings(dict(good, omega=0.04), dict(good, omega=0.030, pixels=5000),
+                           settings, grid, (129, 257)) == []
 
 
 def test_accumulator_settings_that_cannot_work_are_refused():

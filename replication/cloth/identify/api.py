@@ -108,7 +108,9 @@ def identify(trajectory, *, model="5", rng=None, budget=None, method="structured
     Parameters
     ----------
     trajectory : Trajectory
-        Any trajectory (``replication.cloth.io.read_trajectory``); ``meta`` is not used.
+        Any trajectory (``replication.cloth.io.read_trajectory``, or one made in memory,
+        checked as the reader checks a file); ``meta`` is not used to identify (only its
+        ``true_params``, when present, is checked).
     model : "5" or "18"
         The paper's simplified model ``(l01, l23, l45, K, tau)`` or 18 parameters
         ``(rest_0..5, k_0..5, tau_0..5)``.

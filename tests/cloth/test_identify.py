@@ -193,9 +193,14 @@ def test_identify_accepts_float32_and_lists_made_in_memory(trajectory):
     positions and pins as a list give the answer of the float64 data to float32 accuracy."""
     import dataclasses
 
+    from replication.cloth.io import check_trajectory
+
     made = dataclasses.replace(trajectory, positions=trajectory.positions.astype(np.float32),
                                pinned=trajectory.pinned.tolist(), velocities=None,
                                source="<memory>")
+    checked = check_trajectory(made)      # converted as the reader converts a file
+    assert checked.positions.dtype == np.float64 and checked.pinned.dtype == np.int64
+    assert checked.source == "<memory>" and checked.meta == made.meta
     best, _, info = identify(made, rng=0)
     reference, _, _ = identify(dataclasses.replace(trajectory, velocities=None), rng=0)
     assert np.allclose(best, reference, rtol=1e-3)

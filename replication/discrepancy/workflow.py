@@ -344,10 +344,11 @@ QUIET_EXCESS = 10.0
 
 def detection_limit(data, mask, sigma_h, frames):
     """The smallest effect the workflow names reliably on these data: an RMS one-step
-    displacement ``DETECTION_SNR * sqrt(6) sigma / sqrt(M)`` (``M`` particle-frames in
-    ``mask``, or the free particles over ``frames`` when the fit has no mask: a fit
-    through the constraint), in units of ``h`` and as an acceleration over ``|g|`` (a
-    force over the weight). The fit's mask is conservative, so the limit is too."""
+    displacement ``DETECTION_SNR * sqrt(6) sigma / sqrt(M)`` (``M`` the particle-frames
+    the fit uses, :func:`_used`: the free ones of ``mask`` on ``frames``, or every free one
+    when the fit has no mask: a fit through the constraint), in units of ``h`` and as an
+    acceleration over ``|g|`` (a force over the weight). The fit's mask is conservative,
+    so the limit is too."""
     used = max(int(np.count_nonzero(_used(data, frames, mask))), 1)
     displacement_h = DETECTION_SNR * np.sqrt(6.0) * sigma_h / np.sqrt(used)
     share = displacement_h * data.h / (data.scene.dt ** 2 * np.linalg.norm(data.scene.gravity))

@@ -168,8 +168,8 @@ def test_identify_refuses_arguments_it_cannot_use(trajectory, change, message):
 
 
 @pytest.mark.parametrize("change, message", [
-    ({"positions": 0.0}, "trajectory (made in memory): field 'positions': found particles "
-                         "(0, 0) and (0, 1) at the same place in frame 0"),
+    ({"positions": np.zeros_like}, "trajectory (made in memory): field 'positions': found "
+                                   "particles (0, 0) and (0, 1) at the same place in frame 0"),
     ({"dt": -0.001}, "field 'dt': found -0.001; expected a time step > 0"),
     ({"pinned": [[0, 0], [0, 99]]}, "field 'pinned': found index (0, 99)"),
     ({"mass": "heavy"}, "field 'mass': found dtype <U5"),
@@ -181,8 +181,8 @@ def test_identify_checks_a_trajectory_made_in_memory_as_the_reader_does(trajecto
     all-zero one used to fail as 'bounds of variable 0: low=0.0 >= high=0.0')."""
     import dataclasses
 
-    if "positions" in change:
-        change = {"positions": np.zeros_like(trajectory.positions)}
+    change = {key: value(getattr(trajectory, key)) if callable(value) else value
+              for key, value in change.items()}
     made = dataclasses.replace(trajectory, source="<memory>", velocities=None, **change)
     with pytest.raises(InputError, match=re.escape(message)):
         identify(made, rng=0)

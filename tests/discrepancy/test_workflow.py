@@ -263,7 +263,21 @@ def test_a_mass_profile_names_one_coefficient_per_row_and_column_of_any_mesh(n):
     were columns; on 25 x 25, 16 of 48 coefficients were dropped."""
     from replication.discrepancy.effects import coefficient_names, get_effect
 
-    names = coefficient_names(get_effect("nonuniform_mass"), 2 * (n - 1))
-    assert names == tuple(f"row{i}" for i in range(n - 1)) + tuple(
-        f"col{j}" for j in range(n - 1))
+    from types import SimpleNamespace
+
+    from replication.cloth.regression import n_base
+    from replication.discrepancy.workflow import _describe
+
+    expected = tuple(f"row{i}" for i in range(n - 1)) + tuple(f"col{j}" for j in range(n - 1))
+    profile = get_effect("nonuniform_mass")
+    assert coefficient_names(profile, 2 * (n - 1)) == expected
     assert coefficient_names(get_effect("linear_damping"), 1) == ("c",)
+    # what a result shows: every coefficient named, none dropped (a fit of n x n data)
+    theta = np.linspace(-0.1, 0.1, 2 * (n - 1))
+    width = n_base("5") + theta.size
+    fit = SimpleNamespace(terms=[(profile, theta)], cov=np.eye(width),
+                          base=SimpleNamespace(k=np.ones(6)), term=lambda name: theta)
+    parameters = _describe(fit, "nonuniform_mass", {}, "5")["parameters"]
+    assert tuple(parameters["coefficients"]) == expected
+    assert list(parameters["coefficients"].values()) == theta.tolist()
+    assert tuple(parameters["standard_errors"]) == expected

@@ -95,4 +95,8 @@ def test_same_config_and_seed_give_same_numbers(name, tmp_path):
                                  f"out={out}"])
         run_experiment(config, out)
         results.append(json.loads((out / "result.json").read_text()))
+        # a file written outside the output folders names no staging folder
+        manifest = config.get("manifest")
+        if isinstance(manifest, str) and Path(manifest).is_file():
+            assert ".partial-" not in Path(manifest).read_text(), manifest
     assert _stable(results[0]) == _stable(results[1])

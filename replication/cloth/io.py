@@ -232,6 +232,8 @@ def _validated(raw, path):
     _finite(path, "gravity", gravity)
 
     pinned = raw["pinned"]
+    if pinned.size == 0 and pinned.ndim <= 2 and pinned.shape[-1:] in ((0,), (2,)):
+        pinned = np.zeros((0, 2), np.int64)  # nothing pinned: [] has no integer dtype
     if not np.issubdtype(pinned.dtype, np.integer):
         _fail(path, "pinned", f"dtype {pinned.dtype}", "integers (i, j)")
     if pinned.ndim != 2 or pinned.shape[1] != 2:

@@ -101,8 +101,13 @@ def mass_map(theta, n):
     return (1.0 / np.maximum(inverse, 1e-6)).reshape(n, n)
 
 
+def _profile_side(size):
+    """The mesh side ``n`` of a mass profile with ``size = 2 (n - 1)`` coefficients."""
+    return size // 2 + 1
+
+
 def _mass_physical(theta, base, *, threshold=0.1):
-    n = len(theta) // 2 + 1
+    n = _profile_side(len(theta))
     relative = mass_map(theta, n)
     rows = relative.mean(axis=1)
     cols = relative.mean(axis=0)
@@ -142,7 +147,7 @@ def coefficient_names(effect, size):
     ``2 (n - 1)`` of them on an ``n x n`` mesh (``row0..``, ``col0..``; the library entry
     lists the 17 x 17 contract's), every other effect its fixed ``coefficients``."""
     if effect.name == "nonuniform_mass":
-        return _profile_names(size // 2 + 1)
+        return _profile_names(_profile_side(size))
     return effect.coefficients
 
 

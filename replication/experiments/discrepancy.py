@@ -58,8 +58,9 @@ def example(config, out):
     result["hidden"] = spec
     result["hidden_coefficients"] = gen.truth_coefficients(spec, 0.001)
     manifest = Path(config["manifest"])
+    # the output folders are left out: a run writes them to a staging folder first
     write_json_atomic(manifest, {"config": {k: v for k, v in config.items()
-                                            if k not in ("out", "report")},
+                                            if k not in ("out", "report", "figures_dir")},
                                  "spec": spec, "file": path.name,
                                  "sha256": file_sha256(path),
                                  "note": "regenerate with replicate experiment="

@@ -135,3 +135,20 @@ def test_cost_frame_outside_data_is_refused(tmp_path):
         make_cost(trajectory, "small", frame=150)
     with pytest.raises(InputError, match="outside the data"):
         make_cost(trajectory, "full", start=0, window=50)
+
+
+@pytest.mark.parametrize("empty", [[], np.zeros((0, 2)), np.zeros((0, 2), int)],
+                         ids=["list", "float (0, 2)", "int (0, 2)"])
+def test_empty_pin_list_means_nothing_pinned(tmp_path, empty):
+    arrays = _valid_arrays()
+    arrays["pinned"] = np.asarray(empty)
+    trajectory = read_trajectory(_save(tmp_path, arrays))
+    assert trajectory.pinned.shape == (0, 2) and trajectory.pinned.dtype == np.int64
+    assert trajectory.scene().pinned.shape == (0, 2)
+
+
+def test_non_integer_pins_are_still_refused(tmp_path):
+    arrays = _valid_arrays()
+    arrays["pinned"] = np.array([[0.0, 0.0]])
+    with pytest.raises(InputError, match="'pinned': found dtype float64"):
+        read_trajectory(_save(tmp_path, arrays))

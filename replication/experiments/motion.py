@@ -117,6 +117,23 @@ def _check_settings(settings):
 # the best peak this many cells from the accumulator's border is "at the edge" (the peak
 # of a centre outside it shows as a slope cut off a few cells inside)
 EDGE_CELLS = 3.0
+# a refined centre whose spread (irc.rigid_spread, the x and y spreads combined) is above
+# this many pixels, and this fraction of the frame's larger side, is warned; the accuracy
+# study measures how often such spreads cover the errors
+SPREAD_PX, SPREAD_OF_SIDE = 1.0, 0.002
+
+
+def spread_allowed(shape=None):
+    """The largest refined-centre spread (pixels) answered without a warning, for frames of
+    ``shape`` (H, W)."""
+    return max(SPREAD_PX, SPREAD_OF_SIDE * max(shape)) if shape else SPREAD_PX
+
+
+def centre_spread(estimate):
+    """The refined centre's spread (pixels): ``hypot(xi_sd, eta_sd)`` of ``estimate``'s
+    ``spread``, or ``None``."""
+    spread = estimate.get("spread")
+    return None if spread is None else float(np.hypot(spread["xi_sd"], spread["eta_sd"]))
 
 
 def check_motion(sequence):
@@ -182,11 +199,37 @@ FAST = "coarse sweep + refinement"
 TVL1, ORACLE = "TV-L1 flow + rigid fit", "TV-L1 flow + fit on the true mask (oracle)"
 
 
-def _row(name, noise, method, estimate, seconds, truth):
+def _row(name, noise, method, estimate, seconds, truth, shape=None):
     row = {"sequence": name, "noise_255": noise, "method": method, "xi": estimate["xi"],
            "eta": estimate["eta"], "omega": estimate["omega"], "seconds": seconds}
     row.update(single.errors(estimate, truth))
+    if "spread" in estimate:
+        spread = centre_spread(estimate)
+        row["centre_spread_px"] = spread
+        row["spread_warned"] = spread is not None and spread > spread_allowed(shape)
     return row
+
+
+def spread_coverage(rows):
+    """How the refined centres' spreads describe their errors, over the ``rows`` that have
+    one: the fraction with an error within 2 and 3 spreads, and how often the spread
+    warning fires on errors above 2 px and on errors of at most 1 px."""
+    mine = [r for r in rows if r.get("centre_spread_px") is not None
+            and np.isfinite(r["centre_px"])]
+    error = np.array([r["centre_px"] for r in mine], dtype=float)
+    spread = np.array([r["centre_spread_px"] for r in mine], dtype=float)
+    warned = np.array([r["spread_warned"] for r in mine], dtype=bool)
+
+    def share(mask):
+        return float(np.mean(mask)) if mask.size else None
+
+    large, small = error > 2.0, error <= 1.0
+    return {"rows": len(mine), "without_spread": sum(
+                1 for r in rows if "centre_spread_px" in r and r["centre_spread_px"] is None),
+            "within_2_spreads": share(error <= 2 * spread),
+            "within_3_spreads": share(error <= 3 * spread),
+            "errors_over_2px": {"n": int(large.sum()), "warned": share(warned[large])},
+            "errors_at_most_1px": {"n": int(small.sum()), "warned": share(warned[small])}}
 
 
 def _oracle_row(name, noise, estimate, seconds, truth, labels, erode):
@@ -209,11 +252,12 @@ def _one_case(name, noise, frames, truth, labels, methods, chosen, settings, con
                              truth))
         if REFINED in chosen:
             rows.append(_row(name, noise, REFINED, found["refined"],
-                             found["seconds"]["paper"] + found["seconds"]["refined"], truth))
+                             found["seconds"]["paper"] + found["seconds"]["refined"], truth,
+                             frames.shape[1:]))
     if FAST in chosen:
         fast = single.coarse_then_refined(frames, settings)
         rows.append(_row(name, noise, FAST, fast["refined"], sum(fast["seconds"].values()),
-                         truth))
+                         truth, frames.shape[1:]))
     for method in chosen:
         if method in methods:
             start = time.perf_counter()
@@ -341,7 +385,10 @@ def accuracy(config, out):
                           for name in loaded},
             "noise_levels_255": noise_levels, "methods": chosen, "workers": workers,
             "wall_load_average_1min": {"start": load_before, "end": os.getloadavg()[0]},
-            "rows": rows, "summary": _summarise(rows, chosen, noise_levels)}
+            "rows": rows, "summary": _summarise(rows, chosen, noise_levels),
+            "spread_coverage": {method: spread_coverage(
+                [r for r in rows if r["method"] == method]) for method in (REFINED, FAST)
+                if method in chosen}}
 
 
 def _best_time(function, repeats):

@@ -6,6 +6,7 @@ which import no figure: a change to Figs. 1-4 makes only this experiment stale.
 
 from __future__ import annotations
 
+import math
 import time
 from pathlib import Path
 
@@ -13,6 +14,7 @@ import numpy as np
 
 from replication.experiments.motion import (
     EDGE_CELLS,
+    spread_allowed,
     _check_settings,
     _load,
     _truth_of,
@@ -86,6 +88,14 @@ def answer_warnings(paper, refined, settings, grid=None, shape=None):
     if not low <= refined["omega"] <= high:
         warnings.append(f"irc_refined.omega={refined['omega']:.4g} is outside the sweep "
                         f"[{low:g}, {high:g}]")
+    spread = refined.get("spread")
+    if spread is not None:
+        centre_sd = math.hypot(spread["xi_sd"], spread["eta_sd"])
+        allowed = spread_allowed(shape)
+        if centre_sd > allowed:
+            warnings.append(f"irc_refined centre spread (block jackknife) is {centre_sd:.3g} "
+                            f"px, above {allowed:.3g} px: expect centre errors of that "
+                            "order or more (noise, few textured pixels)")
     return warnings
 
 

@@ -331,6 +331,16 @@ def matrix_to_irc(matrix):
     return float(xi), float(eta), float(omega)
 
 
+SPREAD_TILE = 16  # pixels: side of the tiles the jackknife of :func:`refine` leaves out
+
+
+def spread_tiles(x, y):
+    """Label of the ``SPREAD_TILE``-pixel square tile holding each pixel ``(x, y)``."""
+    column = np.floor(np.asarray(x) / SPREAD_TILE).astype(np.int64)
+    row = np.floor(np.asarray(y) / SPREAD_TILE).astype(np.int64)
+    return row * 1_000_003 + column
+
+
 def tukey_weights(residual, c):
     """Tukey biweight of ``residual / c``: ``(1 - r^2)^2`` inside ``|r| < 1``, else 0."""
     r = residual / c
@@ -452,6 +462,49 @@ def rigid_update(a, b, weights, centre):
     return update, float(d_omega), math.hypot(p, q)
 
 
+def rigid_spread(a, b, weights, blocks, matrix, centre):
+    """Block-jackknife standard deviations of ``(xi, eta, omega)`` after a refinement step.
+
+    The equations of one block (``blocks``: a label per row, e.g. a square tile of the
+    frame) are left out in turn and the step is solved again; neighbouring pixels share
+    their noise through the smoothing, so whole tiles are left out, not single pixels.
+
+    Parameters
+    ----------
+    a, b, weights
+        The last step's equations, as given to :func:`rigid_update`.
+    blocks : (n,) ndarray of int
+        Block label of each row.
+    matrix : (3, 3) ndarray
+        The estimate the last step started from.
+    centre : (2,) ndarray
+        The centre of that step.
+
+    Returns
+    -------
+    dict or None
+        ``xi_sd``, ``eta_sd``, ``omega_sd`` and ``blocks`` (the number left out in turn);
+        ``None`` with fewer than 4 blocks holding weighted rows.
+    """
+    labels = np.unique(blocks[weights > 0])
+    if labels.size < 4:
+        return None
+    replicates = []
+    for label in labels:
+        kept = weights * (blocks != label)
+        if np.count_nonzero(kept) < 3:
+            continue
+        update, *_ = rigid_update(a, b, kept, centre)
+        replicates.append(matrix_to_irc(matrix @ update))
+    if len(replicates) < 4:
+        return None
+    values = np.array(replicates)
+    k = len(values)
+    sd = np.sqrt((k - 1) / k * ((values - values.mean(0)) ** 2).sum(0))
+    return {"xi_sd": float(sd[0]), "eta_sd": float(sd[1]), "omega_sd": float(sd[2]),
+            "blocks": k}
+
+
 def refine(frames, xi, eta, omega, region, *, sigma=1.5, relative_threshold=0.15,
            tukey_c=1.0, max_iter=30, tol=1e-7):
     """Refine ``(xi, eta, omega)`` by iterative warping and robust least squares.
@@ -500,11 +553,13 @@ def refine(frames, xi, eta, omega, region, *, sigma=1.5, relative_threshold=0.15
     for _ in range(max_iter):
         iterations += 1
         centre = np.array(matrix_to_irc(matrix)[:2])
-        rows_a, rows_b, weights = [], [], []
+        rows_a, rows_b, weights, tiles = [], [], [], []
         for t in range(len(smoothed) - 1):
             a, b, static, mask = _warped_equations(smoothed[t], smoothed[t + 1], matrix, centre,
                                            border=border,
                                            relative_threshold=relative_threshold)
+            ys, xs = np.nonzero(mask)
+            tiles.append(spread_tiles(xs, ys))
             inside = move_region(region, matrix, t)[mask]
             if t == 0:
                 gradient = mask
@@ -520,9 +575,12 @@ def refine(frames, xi, eta, omega, region, *, sigma=1.5, relative_threshold=0.15
         if used < 3:
             break
         update, d_omega, shift = rigid_update(a, b, w, centre)
+        last = (a, b, w, np.concatenate(tiles), matrix, centre)
         matrix = matrix @ update
         if abs(d_omega) < tol and shift < 1000 * tol:
             break
     xi_r, eta_r, omega_r = matrix_to_irc(matrix)
+    spread = rigid_spread(*last) if used >= 3 else None
     return {"xi": xi_r, "eta": eta_r, "omega": omega_r, "iterations": iterations,
-            "pixels": used, "gradient": gradient, "consistent": consistent}
+            "pixels": used, "gradient": gradient, "consistent": consistent,
+            "spread": spread}

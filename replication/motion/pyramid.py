@@ -330,6 +330,8 @@ def sampled_equations(sample, matrix, centre, *, border):
     -------
     a : (n, 3) ndarray
     b, static : (n,) ndarray
+    keep : (n_sample,) ndarray of bool
+        The sampled pixels the rows belong to.
         Normal-flow residual after warping, and without warping (standing still).
     """
     height, width = (size - 2 * SPLINE_PAD for size in sample.coefficients.shape)
@@ -350,10 +352,11 @@ def sampled_equations(sample, matrix, centre, *, border):
     g, gx, gy = g[keep], gx[keep], gy[keep]
     X, Y = sample.x[keep] - centre[0], sample.y[keep] - centre[1]
     a = np.stack([(gy * X - gx * Y) / g, gx / g, gy / g], axis=1)
-    return a, -gt[keep] / g, (sample.s0 - sample.s1)[keep] / g
+    return a, -gt[keep] / g, (sample.s0 - sample.s1)[keep] / g, keep
 
 
-def refine_sampled(samples, matrix, *, border, tukey_c=1.0, max_iter=10, tol=1e-7):
+def refine_sampled(samples, matrix, *, border, tukey_c=1.0, max_iter=10, tol=1e-7,
+                   spread=False):
     """The warping refinement of :func:`replication.motion.irc.refine` on sampled pixels.
 
     Parameters
@@ -366,25 +369,29 @@ def refine_sampled(samples, matrix, *, border, tukey_c=1.0, max_iter=10, tol=1e-
         Warped places closer than this to the frame's edge are left out.
     tukey_c, max_iter, tol
         As in :func:`~replication.motion.irc.refine`.
+    spread : bool
+        Also return the block-jackknife ``spread`` of the last step
+        (:func:`~replication.motion.irc.rigid_spread`, tiles of ``irc.SPREAD_TILE`` pixels).
 
     Returns
     -------
     dict
         ``matrix`` (refined), ``iterations``, ``pixels`` (equations with a non-zero weight
-        in the last iteration).
+        in the last iteration), and with ``spread`` the ``spread`` (or ``None``).
     """
     iterations, used = 0, 0
     for _ in range(max_iter):
         iterations += 1
         centre = np.array(irc.matrix_to_irc(matrix)[:2])
-        rows_a, rows_b, weights = [], [], []
+        rows_a, rows_b, weights, tiles = [], [], [], []
         for sample in samples:
             if sample is None or sample.x.size == 0:
                 continue
-            a, b, static = sampled_equations(sample, matrix, centre, border=border)
+            a, b, static, keep = sampled_equations(sample, matrix, centre, border=border)
             rows_a.append(a)
             rows_b.append(b)
             weights.append(irc.tukey_weights(b, tukey_c) * (np.abs(b) <= np.abs(static)))
+            tiles.append(irc.spread_tiles(sample.x[keep], sample.y[keep]))
         if not rows_a:
             break
         a, b, w = np.concatenate(rows_a), np.concatenate(rows_b), np.concatenate(weights)
@@ -392,10 +399,14 @@ def refine_sampled(samples, matrix, *, border, tukey_c=1.0, max_iter=10, tol=1e-
         if used < 3:
             break
         update, d_omega, shift = irc.rigid_update(a, b, w, centre)
+        last = (a, b, w, np.concatenate(tiles), matrix, centre)
         matrix = matrix @ update
         if abs(d_omega) < tol and shift < 1000 * tol:
             break
-    return {"matrix": matrix, "iterations": iterations, "pixels": used}
+    found = {"matrix": matrix, "iterations": iterations, "pixels": used}
+    if spread:
+        found["spread"] = irc.rigid_spread(*last) if used >= 3 else None
+    return found
 
 
 def refine_levels(pyramid, starts, regions, settings):
@@ -444,9 +455,12 @@ def refine_levels(pyramid, starts, regions, settings):
                                    max_pixels=int(settings["refine_pixels"]))
             found = refine_sampled(samples, irc.rigid_matrix(xi, eta, omega),
                                    border=level.border, tukey_c=settings["tukey_c"],
-                                   max_iter=int(settings["level_iterations"]))
+                                   max_iter=int(settings["level_iterations"]),
+                                   spread=k == 0)
             current[index] = irc.matrix_to_irc(found["matrix"])
             answer = answers[index]
+            if k == 0:
+                answer["spread"] = found["spread"]
             answer["iterations"] += found["iterations"]
             answer["pixels"] = found["pixels"]
             answer["levels"].append({

@@ -147,7 +147,8 @@ def refined_method(frames, start, pixels, settings):
                              tukey_c=settings["tukey_c"])
         iterations += current["iterations"]
     return {"xi": current["xi"], "eta": current["eta"], "omega": current["omega"],
-            "iterations": iterations, "pixels": current["pixels"], "region": region}
+            "iterations": iterations, "pixels": current["pixels"], "region": region,
+            "spread": current.get("spread")}
 
 
 def find_rotation(frames, settings):
@@ -219,6 +220,7 @@ def pyramid_rotation(frames, settings):
     end = time.perf_counter()
     refined = {key: fine[key] for key in ("xi", "eta", "omega", "iterations", "pixels")}
     refined["iterations"] += top["iterations"]
+    refined["spread"] = fine.get("spread")
     if factor == 1:
         refined = dict(top)
     in_input = {"xi": float(pyramid.to_input(paper["xi"], factor)),

@@ -91,6 +91,13 @@ def test_answer_warnings_flag_a_translation_and_a_centre_at_the_accumulator_edge
     edge = dict(inside, eta=63.0)
     assert any("edge of the accumulator" in w
                for w in answer_warnings(edge, inside, settings, grid, (64, 64)))
+    # a refined centre spread above 1 px (and 0.2% of the larger side) is warned
+    steady = dict(inside, spread={"xi_sd": 0.3, "eta_sd": 0.4, "omega_sd": 1e-4})
+    assert answer_warnings(inside, steady, settings, grid, (64, 64)) == []
+    noisy = dict(inside, spread={"xi_sd": 0.9, "eta_sd": 0.9, "omega_sd": 1e-3})
+    assert any("centre spread (block jackknife) is 1.27 px" in w
+               for w in answer_warnings(inside, noisy, settings, grid, (64, 64)))
+    assert answer_warnings(inside, noisy, settings, grid, (1024, 640)) == []  # 2.05 px allowed
     far = dict(inside, xi=32.0, eta=-1e7, omega=1e-7)
     assert any("looks like a translation" in w
                for w in answer_warnings(inside, far, settings, grid, (64, 64)))

@@ -1,5 +1,7 @@
 """The IRC equation, the accumulation and the refinement against ground truth."""
 
+import math
+
 import numpy as np
 
 from replication.motion import baselines, irc, single
@@ -150,3 +152,38 @@ def test_flow_cache_gives_the_same_numbers_and_keys_on_images_and_options(small_
     baselines.optical_flow_rotation(frames[::-1], method="ilk", cache_dir=tmp_path)
     assert len(list(tmp_path.glob("*.npy"))) == 3
     assert not list(tmp_path.glob("*.partial*"))
+
+
+def test_refined_spread_grows_with_noise_and_covers_the_error(small_sequence, fast_settings):
+    """The block-jackknife spread: tiny without noise, larger with noise, and the noisy
+    centre error within 3 spreads (the accuracy study measures the coverage at large)."""
+    from replication.motion import single
+    from replication.motion.synth import degrade
+
+    frames, _, truth = small_sequence
+    truth = truth["objects"][0]
+    spreads, errors = [], []
+    for noise in (0.0, 6.0 / 255):
+        noisy = degrade(frames, noise_sigma=noise, rng=np.random.default_rng(1))
+        refined = single.find_rotation(noisy, fast_settings)["refined"]
+        spread = refined["spread"]
+        assert spread is not None and spread["blocks"] >= 4
+        spreads.append(math.hypot(spread["xi_sd"], spread["eta_sd"]))
+        errors.append(math.hypot(refined["xi"] - truth["xi"], refined["eta"] - truth["eta"]))
+        assert spread["omega_sd"] > 0
+    assert spreads[1] > 5 * spreads[0]
+    assert errors[1] <= 3 * spreads[1]
+
+
+def test_rigid_spread_needs_four_tiles():
+    rng = np.random.default_rng(0)
+    a, b = rng.normal(size=(300, 3)), rng.normal(size=300) * 1e-3
+    matrix, centre = irc.rigid_matrix(10.0, 20.0, 0.02), np.array([10.0, 20.0])
+    three = np.repeat(np.arange(3), 100)
+    assert irc.rigid_spread(a, b, np.ones(300), three, matrix, centre) is None
+    six = np.repeat(np.arange(6), 50)
+    spread = irc.rigid_spread(a, b, np.ones(300), six, matrix, centre)
+    assert spread["blocks"] == 6 and spread["omega_sd"] > 0
+    # tiles with no weighted row are not left out in turn
+    weights = (six < 4).astype(float)
+    assert irc.rigid_spread(a, b, weights, six, matrix, centre)["blocks"] == 4

@@ -83,7 +83,7 @@ def test_sampled_equations_match_the_dense_ones(small_sequence):
     sample = pyramid.PairSample(x=cols.astype(float), y=rows.astype(float), s0=s0[mask],
                                 gx0=gx[mask], gy0=gy[mask], s1=s1[mask],
                                 coefficients=pyramid.spline_coefficients(s1))
-    a_s, b_s, static_s = pyramid.sampled_equations(sample, matrix, centre, border=border)
+    a_s, b_s, static_s, _ = pyramid.sampled_equations(sample, matrix, centre, border=border)
     np.testing.assert_allclose(a_s, a, atol=1e-9)
     np.testing.assert_allclose(b_s, b, atol=1e-9)
     np.testing.assert_allclose(static_s, static, atol=1e-9)

@@ -332,6 +332,7 @@ def matrix_to_irc(matrix):
 
 
 SPREAD_TILE = 16  # pixels: side of the tiles the jackknife of :func:`refine` leaves out
+SPREAD_GROUPS = 64  # at most this many solves: more tiles are dealt out into this many groups
 
 
 def spread_tiles(x, y):
@@ -455,11 +456,16 @@ def rigid_update(a, b, weights, centre):
     """
     root = np.sqrt(weights)
     (d_omega, p, q), *_ = np.linalg.lstsq(a * root[:, None], b * root, rcond=None)
+    return _update_matrix(d_omega, p, q, centre), float(d_omega), math.hypot(p, q)
+
+
+def _update_matrix(d_omega, p, q, centre):
+    """The rigid map of a rotation ``d_omega`` about ``centre`` followed by a shift."""
     c, s = math.cos(d_omega), math.sin(d_omega)
     update = np.eye(3)
     update[:2, :2] = [[c, -s], [s, c]]
     update[:2, 2] = np.array([p, q]) + centre - update[:2, :2] @ centre
-    return update, float(d_omega), math.hypot(p, q)
+    return update
 
 
 def rigid_spread(a, b, weights, blocks, matrix, centre):
@@ -468,6 +474,8 @@ def rigid_spread(a, b, weights, blocks, matrix, centre):
     The equations of one block (``blocks``: a label per row, e.g. a square tile of the
     frame) are left out in turn and the step is solved again; neighbouring pixels share
     their noise through the smoothing, so whole tiles are left out, not single pixels.
+    More than ``SPREAD_GROUPS`` blocks are dealt out into that many groups (tile ``k`` in
+    group ``k mod SPREAD_GROUPS``), and the groups are left out in turn.
 
     Parameters
     ----------
@@ -483,19 +491,30 @@ def rigid_spread(a, b, weights, blocks, matrix, centre):
     Returns
     -------
     dict or None
-        ``xi_sd``, ``eta_sd``, ``omega_sd`` and ``blocks`` (the number left out in turn);
-        ``None`` with fewer than 4 blocks holding weighted rows.
+        ``xi_sd``, ``eta_sd``, ``omega_sd`` and ``blocks`` (the number of blocks or groups
+        left out in turn); ``None`` with fewer than 4 of them holding weighted rows.
     """
+    labels, blocks = np.unique(blocks, return_inverse=True)
+    if labels.size > SPREAD_GROUPS:  # a grouped jackknife: whole tiles, dealt out in turn
+        blocks = blocks % SPREAD_GROUPS
     labels = np.unique(blocks[weights > 0])
     if labels.size < 4:
         return None
+    # the normal equations of each block; leaving one out subtracts its share
+    size = int(blocks.max()) + 1
+    wa = a * weights[:, None]
+    normal = np.array([[np.bincount(blocks, wa[:, i] * a[:, j], size) for j in range(3)]
+                       for i in range(3)])
+    right = np.array([np.bincount(blocks, wa[:, i] * b, size) for i in range(3)])
     replicates = []
     for label in labels:
-        kept = weights * (blocks != label)
-        if np.count_nonzero(kept) < 3:
+        kept_normal = normal.sum(axis=2) - normal[:, :, label]
+        kept_right = right.sum(axis=1) - right[:, label]
+        try:
+            d_omega, p, q = np.linalg.solve(kept_normal, kept_right)
+        except np.linalg.LinAlgError:
             continue
-        update, *_ = rigid_update(a, b, kept, centre)
-        replicates.append(matrix_to_irc(matrix @ update))
+        replicates.append(matrix_to_irc(matrix @ _update_matrix(d_omega, p, q, centre)))
     if len(replicates) < 4:
         return None
     values = np.array(replicates)

@@ -187,3 +187,13 @@ def test_rigid_spread_needs_four_tiles():
     # tiles with no weighted row are not left out in turn
     weights = (six < 4).astype(float)
     assert irc.rigid_spread(a, b, weights, six, matrix, centre)["blocks"] == 4
+
+
+def test_rigid_spread_deals_many_tiles_into_groups():
+    rng = np.random.default_rng(1)
+    n = 40 * irc.SPREAD_GROUPS
+    a, b = rng.normal(size=(n, 3)), rng.normal(size=n) * 1e-3
+    tiles = np.arange(n) // 10 * 7  # 4 x SPREAD_GROUPS tiles, labels not 0..k-1
+    spread = irc.rigid_spread(a, b, np.ones(n), tiles, irc.rigid_matrix(5.0, 5.0, 0.01),
+                              np.array([5.0, 5.0]))
+    assert spread["blocks"] == irc.SPREAD_GROUPS

@@ -65,6 +65,35 @@ def test_an_answer_off_the_truth_leaves_residuals_above_the_noise(runs):
     assert any("the answer is off" in w for w in warnings)
 
 
+def test_the_data_noise_does_not_depend_on_the_answer(runs):
+    """An outside user's paper-EA answer (K 75% low, a tau that turns the constraint off)
+    left residuals that looked like noise: misfit 2.35 on noise-free data, no warning.
+    robust_misfit compares the typical residual with the noise the data show alone."""
+    tight = _write(runs["folder"] / "tight.npz", runs[0.01])
+    at_truth, _ = _diagnose(tight, 4.0, 0.01)
+    assert at_truth["robust_misfit"] == 0.0 and at_truth["data_noise_h"] < 1e-4
+    off, warnings = _diagnose(tight, 1.0, 0.9)
+    assert off["robust_misfit"] > 100
+    assert any("the answer is off" in w for w in warnings)
+    rng = np.random.default_rng(5)
+    noisy = runs[0.01] + 1e-4 * H * rng.standard_normal(runs[0.01].shape)
+    noisy[:, [0, N - 1]] = runs[0.01][:, [0, N - 1]]
+    found, _ = _diagnose(_write(runs["folder"] / "noisy5.npz", noisy), 4.0, 0.01)
+    assert found["data_noise_h"] == pytest.approx(1e-4, rel=0.3)
+    assert found["robust_misfit"] < 1.5
+
+
+def test_robust_misfit_warns_only_when_misfit_does_not():
+    names = ("l01", "l23", "l45", "K", "tau")
+    base = {"undetermined": [], "noise_h": 1e-5, "misfit": 2.0, "data_noise_h": 3e-7,
+            "robust_misfit": 3e4}
+    warnings = problem.diagnostic_warnings(base, np.ones(5), names)
+    assert len(warnings) == 1 and "the noise the data show without a model" in warnings[0]
+    both = problem.diagnostic_warnings(dict(base, misfit=10.0), np.ones(5), names)
+    assert len(both) == 1 and "leaves one-step residuals 10" in both[0]
+    assert problem.diagnostic_warnings(dict(base, robust_misfit=1.0), np.ones(5), names) == []
+
+
 def test_noise_is_estimated_and_warned_about_above_the_warning_level(runs):
     rng = np.random.default_rng(3)
     for level, warned in ((1e-5, False), (3e-3, True)):

@@ -16,7 +16,13 @@ from replication.cloth import regression
 from replication.cloth.costs import ClothCost, make_cost
 from replication.cloth.mesh import FAMILY_OF_TYPE, N_TYPES, type_lengths
 from replication.cloth.model import PARAM_NAMES_5, PARAM_NAMES_18, params_from_vectors, step
-from replication.cloth.noise import SIGMA_FLOOR_H, excess_power, noise_sigma
+from replication.cloth.noise import (
+    SIGMA_FLOOR_H,
+    data_noise_sigma,
+    excess_power,
+    noise_sigma,
+    robust_residual_sigma,
+)
 from replication.errors import InputError, check
 from replication.optim.objective import Objective
 
@@ -247,6 +253,17 @@ def residual_fit(cost, best):
       that white noise alone gives (:func:`replication.cloth.noise.excess_power`): near 1
       (or below) when the model explains the data up to noise, far above for a local
       optimum, data in other units, or an effect the model lacks.
+    - ``data_noise_h``: the position noise the data show without any model
+      (:func:`replication.cloth.noise.data_noise_sigma`, robust: the median absolute
+      fourth difference in time over the same frames), and ``robust_misfit``: the square
+      of the typical one-step residual (:func:`~replication.cloth.noise.
+      robust_residual_sigma`) over it, 0 when the residuals are below ``SIGMA_FLOOR_H``.
+      Near 1 or below when the model explains the data up to noise. ``misfit`` measures
+      the noise on the residuals themselves, so an answer far off whose residuals look
+      like noise (a wrong tau that turns the constraint off leaves kinks everywhere) can
+      pass it; ``robust_misfit`` compares with the data instead. Strongly uneven noise
+      (some particles 100 x noisier than the rest) raises it too: the noisy particles'
+      springs pass their noise to their neighbours' residuals.
     - ``residual_frames``: the first and last frame of those residuals.
 
     Parameters
@@ -270,7 +287,15 @@ def _residual_fit(cost, best):
             if masked.size else np.zeros(r.shape[:2], dtype=bool))
     sigma = max(noise_sigma(r, frames, data.free, mask if mask.any() else None),
                 SIGMA_FLOOR_H * data.h)
+    # the fourth differences centred on the residuals' frames
+    positions = cost.trajectory.positions
+    window = positions[max(frames[0] - 2, 0): frames[-1] + 3]
+    data_sigma = data_noise_sigma(window.reshape(len(window), -1, 3), data.free)
+    typical = robust_residual_sigma(r, data.free)
+    floor = SIGMA_FLOOR_H * data.h
+    robust = (max(typical, floor) / max(data_sigma, floor)) ** 2 if typical > floor else 0.0
     return sigma, {"noise_h": sigma / data.h, "misfit": excess_power(r, data.free, sigma),
+                   "data_noise_h": data_sigma / data.h, "robust_misfit": robust,
                    "residual_frames": [int(frames[0]), int(frames[-1])]}
 
 
@@ -284,8 +309,9 @@ def diagnostic_warnings(diagnostics, best, names):
         for name in diagnostics["undetermined"] if name[0] in "kK"]
     warnings += [
         f"{name}={best[name]:.6g} is not determined by the cost: no spring of its type "
-        f"reaches (1 + {name}) x its rest length in the cost's frames, so every "
-        f"{name} >= {best[name]:.6g} has the same cost (a lower bound only; a cost on "
+        f"reaches (1 + {name}) x its rest length in the cost's frames, so with the other "
+        f"parameters as found every {name} >= {best[name]:.6g} has the same cost (a lower "
+        "bound only if they are right; a cost on "
         "frames where the cloth is more stretched, set by cost.frame, cost.frames or "
         "cost.kind=full, may determine it)"
         for name in diagnostics["undetermined"] if name.startswith("tau")]
@@ -295,6 +321,13 @@ def diagnostic_warnings(diagnostics, best, names):
             f"{diagnostics['misfit']:.3g} x what the position noise explains: the answer "
             "is off (approximate, or a local optimum), the data are in other units or "
             "another dt, or the model lacks an effect (the discrepancy workflow finds which)")
+    elif diagnostics.get("robust_misfit", 0.0) > MISFIT_WARN:
+        warnings.append(
+            f"the model at these parameters leaves typical one-step residuals "
+            f"{diagnostics['robust_misfit']:.3g} x (in power) the noise the data show "
+            f"without a model ({diagnostics['data_noise_h']:.2g} h): the answer is off "
+            "(approximate, or a local optimum), the model lacks an effect, or the noise "
+            "is far from even across particles")
     if diagnostics["noise_h"] > MEANINGLESS_NOISE_H:
         warnings.append(
             f"the positions carry noise of about {diagnostics['noise_h']:.2g} h (estimated "

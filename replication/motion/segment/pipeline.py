@@ -267,7 +267,8 @@ def _refined(frames, found, settings):
     if not all(math.isfinite(v) for v in values) or moved > \
             settings["accumulation"]["refine_max_px"]:
         return {}
-    return {"xi": better["xi"], "eta": better["eta"], "omega": better["omega"]}
+    return {"xi": better["xi"], "eta": better["eta"], "omega": better["omega"],
+            "spread": better["spread"]}
 
 
 def grow_from_seeds(data, found, settings):
@@ -451,7 +452,8 @@ def segment_pyramid(frames, settings, rng):
         for item, answer in zip(top_objects, answers):
             mask = pyramid.upsample_mask(item["mask"], factor, frames.shape[1:])
             objects.append({**item, "xi": answer["xi"], "eta": answer["eta"],
-                            "omega": answer["omega"], "mask": mask,
+                            "omega": answer["omega"], "spread": answer.get("spread"),
+                            "mask": mask,
                             "area": int(np.count_nonzero(mask)), "levels": answer["levels"],
                             "top": {k: float(item[k]) for k in ("xi", "eta", "omega")}})
     seconds = {"pyramid": built - start, **found["seconds"],

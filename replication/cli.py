@@ -31,7 +31,7 @@ from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
 from replication.errors import InputError
-from replication.guard import LIMITS, check_config, check_out, check_writable
+from replication.guard import LIMITS, check_config, check_out, check_writable, committed_folder
 from replication.progress import mode_for
 from replication.provenance import run_provenance
 from replication.results import (package_versions, read_result_or_none, to_jsonable,
@@ -41,6 +41,44 @@ CONFIG_DIR = str(Path(__file__).resolve().parent.parent / "configs")
 
 # config keys naming output folders besides ``out``: staged like ``out``
 OUTPUT_KEYS = ("figure_dir", "figures_dir", "data_dir")
+# config keys naming output files in a folder of their own (``figure: figures/x.png``; a
+# bare name is a file inside ``figure_dir``): staged in a folder of their own
+OUTPUT_FILE_KEYS = ("figure", "manifest")
+
+
+def _output_file(config, key):
+    """``config[key]`` when it names an output file with a folder, else ``None``."""
+    value = config.get(key)
+    if isinstance(value, str) and value and Path(value).parent != Path("."):
+        return Path(value)
+    return None
+
+
+_MOVED_NAMES = {"figure_dir": "figures", "figures_dir": "figures", "data_dir": "data"}
+
+
+def keep_committed(config, out):
+    """``(config, notes)``: ``config`` with every output folder and file aimed at a
+    committed folder (``results/``, ``figures/``, ``synthetic_data/``) moved into ``out``,
+    and a note per move, to print once the run is done; ``force=true`` keeps them. A run
+    with ``out=DIR`` does not replace the committed data and figures that later runs and
+    ``replicate-all`` read."""
+    notes = []
+    if config.get("force"):
+        return config, notes
+    kept = dict(config)
+    for key in OUTPUT_KEYS + OUTPUT_FILE_KEYS:
+        value = (config.get(key) if key in OUTPUT_KEYS else _output_file(config, key))
+        if not (isinstance(value, (str, Path)) and str(value)):
+            continue
+        folder = committed_folder(value)
+        if folder is None:
+            continue
+        moved = Path(out) / (_MOVED_NAMES[key] if key in OUTPUT_KEYS else Path(value).name)
+        kept[key] = str(moved)
+        notes.append(f"note: {key}={value} is in the committed {folder}; this run wrote "
+                     f"{moved} instead (force=true writes the committed one)")
+    return kept, notes
 
 if not OmegaConf.has_resolver("or_default"):
     OmegaConf.register_new_resolver("or_default", lambda value, default: value or default)
@@ -79,8 +117,9 @@ class Staging:
     """A hidden folder next to ``out`` that receives everything a runner writes.
 
     :meth:`commit` moves its files to ``out`` and to the configured output folders
-    (``figure_dir``, ``data_dir``), with the staging paths in JSON files and in the result
-    replaced by the real ones; :meth:`discard` removes it.
+    (``figure_dir``, ``data_dir``) and files (``figure``, ``manifest``), with the staging
+    paths in JSON files and in the result replaced by the real ones; :meth:`discard`
+    removes it.
     """
 
     def __init__(self, config, out):
@@ -98,6 +137,12 @@ class Staging:
                 staged = self.root / key
                 self.targets[staged] = Path(value)
                 self.config[key] = str(staged)
+        for key in OUTPUT_FILE_KEYS:
+            value = _output_file(config, key)
+            if value is not None:
+                staged = self.root / f"{key}_file"
+                self.targets[staged] = value.parent
+                self.config[key] = str(staged / value.name)
         for staged in self.targets:
             staged.mkdir()
 
@@ -189,11 +234,11 @@ def report_warnings(result, strict):
         With ``strict`` and at least one warning (the first one names the refusal).
     """
     warnings = [str(w) for w in result.get("warnings") or []]
-    for warning in warnings:
-        print(f"warning: {warning}", file=sys.stderr)
     if strict and warnings:
         more = f" (and {len(warnings) - 1} more warning(s))" if len(warnings) > 1 else ""
         raise InputError(f"strict=true: {warnings[0]}{more}")
+    for warning in warnings:
+        print(f"warning: {warning}", file=sys.stderr)
     return warnings
 
 
@@ -227,8 +272,11 @@ def run_experiment(config, out, defaults=None):
     previous = read_result_or_none(Path(out) / "result.json") if config.get("resume") \
         else None
     if previous is not None and previous.get("provenance") == provenance:
+        # the kept result answers as a new run would: strict=true refuses its warnings
+        report_warnings(previous, config.get("strict", False))
         print(f"up to date: {Path(out) / 'result.json'} (resume=true)", file=sys.stderr)
         return previous
+    config, notes = keep_committed(config, out)
     staging = Staging(config, out)
     try:
         with time_limit(LIMITS["max_seconds"]), mode_for(config.get("progress")):
@@ -251,6 +299,8 @@ def run_experiment(config, out, defaults=None):
         staging.commit()
     finally:
         staging.discard()
+    for note in notes:
+        print(note, file=sys.stderr)
     print(f"wrote {Path(out) / 'result.json'}", file=sys.stderr)
     return payload
 

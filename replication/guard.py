@@ -153,6 +153,19 @@ def protected_folders():
     return [PROJECT_ROOT / "results", Path.cwd() / "results"]
 
 
+COMMITTED = ("results", "figures", "synthetic_data")
+
+
+def committed_folder(path):
+    """The committed folder (``results/``, ``figures/`` or ``synthetic_data/`` of the
+    project, or of the working directory) that holds ``path``, or ``None``."""
+    for root in dict.fromkeys((PROJECT_ROOT, Path.cwd())):
+        for name in COMMITTED:
+            if inside(path, root / name):
+                return f"{name}/"
+    return None
+
+
 def check_out(out, *, force):
     """Refuse an empty ``out`` and, without ``force``, one inside ``results/``.
 

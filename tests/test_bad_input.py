@@ -360,7 +360,13 @@ def test_parameter_at_its_bound_is_a_warning(tmp_path, capsys):
     assert any(w.startswith("best.K=") and "lower bound" in w for w in result["warnings"])
     status, err = replicate(capsys, *args, "strict=true", f"out={tmp_path / 'strict'}")
     assert status == 2 and "error: strict=true: best.K=" in err
+    assert "warning:" not in err    # the refusal names the warning once
     assert not (tmp_path / "strict").exists()
+    # a kept result is refused as a new run would be (resume=true skipped the check)
+    status, err = replicate(capsys, *args, "resume=true", "strict=true")
+    assert status == 2 and "error: strict=true: best.K=" in err and "up to date" not in err
+    status, err = replicate(capsys, *args, "resume=true")
+    assert status == 0 and "up to date" in err and "warning: best.K=" in err
 
 
 # ---------------------------------------------------------------- resume and provenance

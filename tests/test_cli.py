@@ -123,3 +123,27 @@ def test_an_unknown_config_group_option_lists_the_options():
     assert done.returncode == 2 and done.stderr.count("\n") == 1
     assert "available options in 'smoke': bench_cloth, " in done.stderr
     assert "fig08_mesh" in done.stderr
+
+
+def test_a_run_with_out_leaves_the_committed_figures_and_data_alone(tmp_path):
+    """An audit's first commands (`+smoke=NAME out=DIR`) replaced the committed figures and
+    reference runs, and replicate-all then called them up to date."""
+    committed = ROOT / "figures" / "fig08_mesh.png"
+    before = committed.read_bytes()
+    out = tmp_path / "out"
+    done = run_cli("experiment=fig08_mesh", "+smoke=fig08_mesh", f"out={out}")
+    assert done.returncode == 0, done.stderr
+    assert committed.read_bytes() == before
+    assert (out / "figures" / "fig08_mesh.png").is_file()
+    assert "note: figure_dir=figures is in the committed figures/" in done.stderr
+    result = json.loads((out / "result.json").read_text())
+    assert result["config"]["figure_dir"] == str(out / "figures")
+    assert all(str(out) in path for path in result["figures"])
+    # a file key with a folder (discrepancy_blind's figure and manifest) moves as well
+    config = {"figure": "figures/x.png", "manifest": "synthetic_data/y/m.json",
+              "figure_dir": str(tmp_path / "mine"), "data_dir": None}
+    from replication.cli import keep_committed
+    kept, notes = keep_committed(config, out)
+    assert kept["figure"] == str(out / "x.png") and kept["manifest"] == str(out / "m.json")
+    assert kept["figure_dir"] == str(tmp_path / "mine") and len(notes) == 2
+    assert keep_committed(dict(config, force=True), out) == (dict(config, force=True), [])

@@ -513,7 +513,9 @@ def compose_first_job(args):
     """Compose the jobs of a sweep that differ from the first in one swept value (each
     value of each swept key once) and check them (:func:`check_config`), so that Hydra's
     refusals and bad values come as one :class:`InputError` line before any job runs or
-    Hydra writes anything."""
+    Hydra writes anything: the first job with the ``hydra`` overrides (a launcher or one
+    of its keys misspelt), every job's keys against its own experiment's config (a key
+    one swept experiment lacks), and a fixed ``out`` (every job would write there)."""
     from hydra import compose, initialize_config_dir
     from hydra.core.global_hydra import GlobalHydra
     from hydra.core.override_parser.overrides_parser import OverridesParser
@@ -522,35 +524,79 @@ def compose_first_job(args):
 
     GlobalHydra.instance().clear()
     try:
-        overrides, swept = [], []
+        overrides, swept, launcher, plain = [], [], [], []
         for override in OverridesParser.create().parse_overrides(list(args)):
             if override.key_or_group.startswith("hydra"):
+                launcher.append(override.input_line)
                 continue
+            key = override.get_key_element()
+            if key == "out" and not override.is_sweep_override():
+                raise InputError(f"{override.input_line} in a sweep: every job would write "
+                                 "that folder and only the last result would stay; leave "
+                                 "out unset (each job writes multirun/NAME/OVERRIDES, or "
+                                 "hydra.sweep.dir=DIR/OVERRIDES) or sweep it (out=A,B)")
             if override.is_sweep_override():
                 values = list(override.sweep_string_iterator())
-                key = override.get_key_element()
                 overrides.append(f"{key}={values[0]}" if values else override.input_line)
                 swept.extend((len(overrides) - 1, f"{key}={value}") for value in values[1:])
             else:
                 overrides.append(override.input_line)
+            if (not (override.is_add() or override.is_force_add())
+                    and not (Path(CONFIG_DIR) / override.key_or_group).is_dir()):
+                plain.append(override.key_or_group)
         jobs = [overrides] + [overrides[:i] + [line] + overrides[i + 1:] for i, line in swept]
         with initialize_config_dir(config_dir=CONFIG_DIR, version_base="1.3"):
-            defaults = None
+            compose(config_name="config", overrides=overrides + launcher,
+                    return_hydra_config=True)
+            if any(line.startswith("experiment=") for _, line in swept):
+                _check_shared_keys(plain, compose(config_name="config"))
+            defaults = own = None
             for job in jobs:
                 config = OmegaConf.to_container(compose(config_name="config", overrides=job),
                                                 resolve=True)
-                if defaults is None and config.get("name") in available_experiments():
-                    defaults = OmegaConf.to_container(compose(
-                        config_name="config", overrides=[f"experiment={config['name']}"]),
-                        resolve=True)
+                name = config.get("name")
+                if name in available_experiments():
+                    own = OmegaConf.to_container(compose(
+                        config_name="config", overrides=[f"experiment={name}"]), resolve=True)
+                    defaults = own if defaults is None else defaults
+                    _check_keys_exist(plain, own, name, list(args))
                 if config.get("runner"):
-                    check_config(config, defaults)
+                    check_config(config, own)
         if config.get("runner"):
             _note_unread(overrides, defaults, config["name"])
     except (HydraException, OmegaConfBaseException, ValueError) as error:
         raise InputError(_hydra_message(error, list(args))) from None
     finally:
         GlobalHydra.instance().clear()
+
+
+def _check_shared_keys(keys, root):
+    """Refuse, in a sweep over experiments, a key the root config (``configs/config.yaml``)
+    lacks: Hydra applies the sweep's other overrides to it before any experiment."""
+    root = OmegaConf.to_container(root)
+    for key in keys:
+        node = root
+        for part in key.split("."):
+            if not (isinstance(node, dict) and part in node):
+                raise InputError(
+                    f"{key}: a sweep over experiments can set only the keys every "
+                    "experiment shares (configs/config.yaml: seed, out, resume, strict, "
+                    "data.path, limits...); sweep each experiment on its own to set it")
+            node = node[part]
+
+
+def _check_keys_exist(keys, config, name, overrides):
+    """Refuse an override of a key ``name``'s config does not hold (Hydra refuses it when
+    the job starts, in a sweep over experiments after the other jobs ran)."""
+    for key in keys:
+        node = config
+        for part in key.split("."):
+            if not (isinstance(node, dict) and part in node):
+                close = _close_keys(key, [f"experiment={name}"])
+                hint = f"; did you mean {' or '.join(close)}?" if close else ""
+                raise InputError(f"{key}: {name}'s config has no such key{hint} (a sweep "
+                                 "over experiments sets every key in every job)")
+            node = node[part]
 
 
 def _missing_chain(path):

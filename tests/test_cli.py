@@ -2,6 +2,7 @@
 
 import json
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -10,6 +11,7 @@ import pytest
 from hydra import compose, initialize_config_dir
 
 from replication.cli import CONFIG_DIR, available_experiments
+from replication.errors import InputError
 from replication.report.build import build_report, experiment_entries
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -147,3 +149,25 @@ def test_a_run_with_out_leaves_the_committed_figures_and_data_alone(tmp_path):
     assert kept["figure"] == str(out / "x.png") and kept["manifest"] == str(out / "m.json")
     assert kept["figure_dir"] == str(tmp_path / "mine") and len(notes) == 2
     assert keep_committed(dict(config, force=True), out) == (dict(config, force=True), [])
+
+
+@pytest.mark.parametrize("args, message", [
+    (["experiment=cloth_identify", "seed=0,1", "out=o/same"],
+     "out=o/same in a sweep: every job would write that folder"),
+    (["hydra/launcher=lokal", "experiment=fig08_mesh"],
+     "available options in 'hydra/launcher': basic, dask"),
+    (["hydra/launcher=dask", "hydra.launcher.n_worker=3", "experiment=fig08_mesh"],
+     "Could not override 'hydra.launcher.n_worker'"),
+    (["experiment=fig08_mesh,cloth_identify", "figure_dir=o/f"],
+     "figure_dir: a sweep over experiments can set only the keys every experiment shares"),
+])
+def test_sweep_refusals_come_before_any_job(args, message):
+    """Outside users' sweeps: a fixed out kept only the last job; a misspelt launcher or
+    launcher key, and an experiment-specific key in a sweep over experiments, gave Hydra's
+    multi-line message with status 1."""
+    from replication.cli import compose_first_job
+
+    with pytest.raises(InputError, match=re.escape(message)):
+        compose_first_job(args)
+    compose_first_job(["experiment=cloth_identify", "seed=0,1", "out=o/a,o/b"])
+    compose_first_job(["experiment=fig08_mesh,cloth_identify", "seed=3"])

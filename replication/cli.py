@@ -60,7 +60,8 @@ _MOVED_NAMES = {"figure_dir": "figures", "figures_dir": "figures", "data_dir": "
 def keep_committed(config, out):
     """``(config, notes)``: ``config`` with every output folder and file aimed at a
     committed folder (``results/``, ``figures/``, ``synthetic_data/``) moved into ``out``,
-    and a note per move, to print once the run is done; ``force=true`` keeps them. A run
+    and per move ``(new path, note)``, the note to print once the run has written there;
+    ``force=true`` keeps them. A run
     with ``out=DIR`` does not replace the committed data and figures that later runs and
     ``replicate-all`` read."""
     notes = []
@@ -76,12 +77,23 @@ def keep_committed(config, out):
             continue
         moved = Path(out) / (_MOVED_NAMES[key] if key in OUTPUT_KEYS else Path(value).name)
         kept[key] = str(moved)
-        notes.append(f"note: {key}={value} is in the committed {folder}; this run wrote "
-                     f"{moved} instead (force=true writes the committed one)")
+        notes.append((moved, f"note: {key}={value} is in the committed {folder}; this run "
+                             f"wrote {moved} instead (force=true writes the committed one)"))
     return kept, notes
 
 if not OmegaConf.has_resolver("or_default"):
     OmegaConf.register_new_resolver("or_default", lambda value, default: value or default)
+
+
+def folder_name(text):
+    """``text`` as one folder name: ``%`` and ``/`` written ``%25`` and ``%2F`` (a sweep
+    over ``data.path=dir/a.npz,...`` otherwise nests its run folders; ``replicate-gather``
+    reads the values back)."""
+    return str(text).replace("%", "%25").replace("/", "%2F")
+
+
+if not OmegaConf.has_resolver("folder_name"):
+    OmegaConf.register_new_resolver("folder_name", folder_name)
 
 
 class Interrupted(KeyboardInterrupt):
@@ -299,8 +311,9 @@ def run_experiment(config, out, defaults=None):
         staging.commit()
     finally:
         staging.discard()
-    for note in notes:
-        print(note, file=sys.stderr)
+    for moved, note in notes:
+        if moved.exists():  # an output key the runner does not use leaves nothing
+            print(note, file=sys.stderr)
     print(f"wrote {Path(out) / 'result.json'}", file=sys.stderr)
     return payload
 
@@ -407,6 +420,9 @@ def _hydra_message(error, overrides=()):
             return (f"Could not override '{key}': no such key; did you mean "
                     f"{' or '.join(close)}? (+{key}=VALUE would add it as a new key, which "
                     "the run ignores unless it reads it)")
+    if "ConfigLoader is not set" in text:
+        return ("glob(...) chooses among config-group options in a sweep, not files: list "
+                "the files instead (-m data.path=A.npz,B.npz)")
     if "Could not find 'experiment/" in text:
         name = text.split("Could not find 'experiment/", 1)[1].split("'", 1)[0]
         return (f"experiment={name}: unknown experiment; expected one of "

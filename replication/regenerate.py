@@ -369,7 +369,7 @@ def main(argv=None):
 def _main(argv=None):
     parser = argparse.ArgumentParser(prog="replicate-all", description=main.__doc__)
     parser.add_argument("--force", action="store_true", help="recompute every result")
-    parser.add_argument("--only", default="", help="comma-separated experiment names")
+    parser.add_argument("--only", default=None, help="comma-separated experiment names")
     parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1,
                         help="experiments run at once (default: the number of CPUs)")
     parser.add_argument("--quiet", action="store_true",
@@ -379,7 +379,10 @@ def _main(argv=None):
                         help="the bar over experiments: bar (live), plain (a line every few "
                              "seconds), none; auto: bar on a terminal, else plain. The "
                              "experiments' logs get plain lines (none with --progress=none)")
-    parser.add_argument("--results", default="results")
+    parser.add_argument("--results", default="results",
+                        help="results folder (default results/); another folder gets its own "
+                             "REPORT.md, and the runs still write the figures and data "
+                             "their configs name")
     args = parser.parse_args(argv)
     if args.jobs < 1:
         print(f"error: --jobs={args.jobs}: expected at least 1", file=sys.stderr)
@@ -396,11 +399,22 @@ def _main(argv=None):
     cache = _read_json_object(cache_path)
     entries = experiment_entries()
     blocks = {name: block for _, name, block in entries}
-    only = {name for name in args.only.split(",") if name}
+    only = {name for name in (args.only or "").split(",") if name}
+    if args.only is not None and not only:
+        print(f"error: --only={args.only!r}: no experiment named; expected NAME[,NAME] "
+              "(leave --only out to regenerate everything)", file=sys.stderr)
+        return 2
     unknown = only - set(blocks)
     if unknown:
-        print(f"error: --only: unknown experiment(s) {sorted(unknown)}; known: "
-              f"{sorted(blocks)}", file=sys.stderr)
+        from replication.cli import available_experiments
+
+        outside = sorted(unknown & set(available_experiments()))
+        if outside:
+            print(f"error: --only: {outside} not part of replicate-all (no report block in "
+                  "the config); run it with replicate experiment=NAME", file=sys.stderr)
+        else:
+            print(f"error: --only: unknown experiment(s) {sorted(unknown)}; known: "
+                  f"{sorted(blocks)}", file=sys.stderr)
         return 2
     start = time.perf_counter()
     configs = resolved_configs(list(blocks))
@@ -461,7 +475,10 @@ def _main(argv=None):
         command = replicate_command(results)(name)
         if subprocess.run(command, cwd=PROJECT_ROOT, check=False).returncode != 0:
             failures.append(name)
-    report_path = PROJECT_ROOT / "REPORT.md"
+    # the project's REPORT.md is built from the project's results only
+    report_path = (PROJECT_ROOT / "REPORT.md"
+                   if results.resolve() == (PROJECT_ROOT / "results").resolve()
+                   else results / "REPORT.md")
     report_path.write_text(build_report(results))
     print(f"wrote {report_path} ({time.perf_counter() - start:.1f} s in all)")
     if failures:

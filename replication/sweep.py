@@ -58,14 +58,15 @@ def flatten(value, prefix=""):
 def overrides_of(run_dir):
     """``key=value`` pairs from a Hydra ``override_dirname`` folder name.
 
-    ``run_dir`` is relative to the sweep folder: an override value holding a ``/``
-    (``figure_dir=/tmp/f``) makes Hydra nest the folder, so the whole path is read.
+    ``run_dir`` is relative to the sweep folder. The suite writes a ``/`` in a value as
+    ``%2F`` (and ``%`` as ``%25``: ``replication.cli.folder_name``), decoded here; sweeps
+    made before that nested the folder at a ``/``, so the whole path is read.
     """
     pairs = {}
     for part in Path(run_dir).as_posix().split(","):
         key, sep, value = part.partition("=")
         if sep:
-            pairs[f"{PREFIX}{key}"] = value
+            pairs[f"{PREFIX}{key}"] = value.replace("%2F", "/").replace("%25", "%")
     return pairs
 
 

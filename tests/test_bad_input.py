@@ -515,3 +515,12 @@ def test_interrupt_after_a_figure_leaves_no_figure_and_no_result(tmp_path, monke
         with pytest.raises(KeyboardInterrupt):
             cli.run_experiment(config, config["out"])
     assert sorted(os.listdir(tmp_path)) == []
+
+
+def test_replicate_all_refuses_an_empty_or_outside_only(capsys):
+    """`--only ''` ran every experiment; `--only cloth_baselines` called a real experiment
+    unknown."""
+    assert regenerate.main(["--only", ""]) == 2
+    assert "no experiment named" in capsys.readouterr().err
+    assert regenerate.main(["--only", "cloth_baselines"]) == 2
+    assert "not part of replicate-all (no report block" in capsys.readouterr().err

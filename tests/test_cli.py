@@ -73,6 +73,10 @@ def test_committed_reference_data_is_regenerated_identically(tmp_path):
 @pytest.mark.parametrize("overrides, message", [
     (["taus=[]"], "taus: expected at least one value"),
     (["n_steps=1"], "n_steps=1: expected at least 2 steps"),
+    (["scene.n=2"], "scene.n=2: expected at least 3 particles per side"),
+    (["K=-1.0"], "K=-1.0: expected a stiffness > 0"),
+    (["scene.mass=-1.0"], "scene.mass=-1.0: expected > 0"),
+    (["scene.dt=1.0", "n_steps=200"], "scene.dt=1.0: the run with tau=0.1 blew up"),
     (["out=/proc/forbidden/x"], "cannot write there"),
     ([], "no experiment chosen"),
 ])
@@ -147,7 +151,8 @@ def test_a_run_with_out_leaves_the_committed_figures_and_data_alone(tmp_path):
     from replication.cli import keep_committed
     kept, notes = keep_committed(config, out)
     assert kept["figure"] == str(out / "x.png") and kept["manifest"] == str(out / "m.json")
-    assert kept["figure_dir"] == str(tmp_path / "mine") and len(notes) == 2
+    assert kept["figure_dir"] == str(tmp_path / "mine")
+    assert [moved for moved, _ in notes] == [out / "x.png", out / "m.json"]
     assert keep_committed(dict(config, force=True), out) == (dict(config, force=True), [])
 
 
@@ -171,3 +176,18 @@ def test_sweep_refusals_come_before_any_job(args, message):
         compose_first_job(args)
     compose_first_job(["experiment=cloth_identify", "seed=0,1", "out=o/a,o/b"])
     compose_first_job(["experiment=fig08_mesh,cloth_identify", "seed=3"])
+
+
+def test_budget_null_means_no_budget_and_other_nulls_are_refused():
+    from replication.guard import check_types
+
+    check_types({"budget": 5000}, {"budget": None})
+    with pytest.raises(InputError, match=re.escape("method.sigma=null: expected")):
+        check_types({"method": {"sigma": 1.5}}, {"method": {"sigma": None}})
+
+
+def test_glob_of_files_gets_a_hint():
+    from replication.cli import compose_first_job
+
+    with pytest.raises(InputError, match="not files: list the files instead"):
+        compose_first_job(["experiment=cloth_identify", "data.path=glob(x/*.npz)"])

@@ -171,3 +171,13 @@ def test_every_limit_is_left_out_of_sweep_folder_names():
     excluded = OmegaConf.load(ROOT / "configs" / "config.yaml").hydra.job.config\
         .override_dirname.exclude_keys
     assert {f"limits.{key}" for key in DEFAULT_LIMITS} <= set(excluded)
+
+
+def test_a_path_value_gives_one_run_folder_read_back_by_the_gatherer():
+    """A sweep over data.path=dir/a.npz,... nested its run folders at each '/'."""
+    from replication.cli import folder_name
+
+    name = folder_name("data.path=mine/data/k4%.npz,seed=0")
+    assert "/" not in name
+    assert overrides_of(name) == {"override.data.path": "mine/data/k4%.npz",
+                                  "override.seed": "0"}

@@ -51,6 +51,13 @@ def reference_runs(config, out):
     scene_cfg = config["scene"]
     n_steps = int(config["n_steps"])
     check(n_steps >= 2, f"n_steps={n_steps}: expected at least 2 steps (T >= 3 frames)")
+    # checked before any simulation: a bad value otherwise fails deep inside the model or
+    # as a refusal of the written file, named by its staging path
+    check(int(scene_cfg["n"]) >= 3, f"scene.n={scene_cfg['n']}: expected at least 3 "
+                                    "particles per side")
+    for key in ("side", "dt", "mass"):
+        check(float(scene_cfg[key]) > 0, f"scene.{key}={scene_cfg[key]}: expected > 0")
+    check(float(config["K"]) > 0, f"K={config['K']}: expected a stiffness > 0")
     check(len(config["taus"]) > 0, "taus: expected at least one value")
     data_dir = Path(config["data_dir"])
     scene = _scene_from_config(scene_cfg)
@@ -62,6 +69,9 @@ def reference_runs(config, out):
         truth = reference_vector(tau, K=config["K"], n=scene.n, side=scene_cfg["side"])
         progress(f"reference run tau={tau}: {n_steps} steps")
         positions, _ = simulate(params_from_vectors(truth), scene, n_steps)
+        check(np.all(np.isfinite(positions)),
+              f"scene.dt={scene_cfg['dt']}: the run with tau={tau} blew up (non-finite "
+              "positions): expected a stable time step for this K and mass (a smaller dt)")
         meta = {
             "description": f"contract reference run, K={config['K']}, tau={tau}",
             "true_params": dict(zip(("l01", "l23", "l45", "K", "tau"), truth.tolist())),
@@ -78,7 +88,7 @@ def reference_runs(config, out):
         }
     manifest = {"config": {k: v for k, v in config.items() if k != "out"}, "files": files}
     write_json_atomic(data_dir / "manifest.json", manifest)
-    progress(f"wrote {len(files)} trajectories and manifest.json to {data_dir}")
+    progress(f"wrote {len(files)} trajectories and manifest.json into data_dir")
     return {"files": files, "data_dir": str(data_dir), "costs_at_truth": costs}
 
 

@@ -87,7 +87,7 @@ def make_data(config, out):
     manifest = {"config": {k: v for k, v in config.items() if k != "out"},
                 "sequences": summary, "files": files}
     write_json_atomic(data_dir / "manifest.json", manifest)
-    progress(f"wrote {len(files)} files and manifest.json to {data_dir}")
+    progress(f"wrote {len(files)} files and manifest.json into data_dir")
     return {"data_dir": str(data_dir), "sequences": summary, "files": files}
 
 

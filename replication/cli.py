@@ -652,8 +652,23 @@ def flag_overrides(args):
     return replaced
 
 
+USAGE = """usage: replicate experiment=NAME [key=value ...] [--strict] [--quiet]
+                 [--progress=bar|plain|none]
+       replicate -m experiment=NAME key=v1,v2 ...   (a sweep: multirun/NAME/OVERRIDES)
+
+The suite's options (each stands for a config key):
+  --strict           strict=true: a warning refuses the run (status 2)
+  --quiet            progress=none: no progress lines or bars
+  --progress=MODE    progress=MODE (auto: a bar on a terminal, else plain lines)
+Experiments and their keys: docs/experiments.md; the command line, exit statuses and
+result.json: docs/results.md. Hydra's own help follows.
+"""
+
+
 def main():
     """Console-script entry point."""
+    if {"--help", "-h"} & set(sys.argv[1:]):
+        print(USAGE)
     sys.argv = sys.argv[:1] + flag_overrides(sys.argv[1:])
     args = sys.argv[1:]
 

@@ -191,3 +191,10 @@ def test_glob_of_files_gets_a_hint():
 
     with pytest.raises(InputError, match="not files: list the files instead"):
         compose_first_job(["experiment=cloth_identify", "data.path=glob(x/*.npz)"])
+
+
+def test_help_names_the_suites_own_options():
+    done = run_cli("--help")
+    assert done.returncode == 0
+    for option in ("--strict", "--quiet", "--progress=MODE", "docs/experiments.md"):
+        assert option in done.stdout

@@ -149,7 +149,7 @@ def test_dask_sweep_with_a_failing_job_exits_2_and_keeps_the_other_jobs(tmp_path
     assert done.returncode == 2, done.stderr[-3000:]
     assert "error: README.md: cannot be read" in done.stderr
     runs = [p.parent.relative_to(folder).as_posix() for p in folder.rglob("result.json")]
-    assert runs == ["budget=50,data.path=synthetic_data/cloth/reference_tau0.5.npz,"
+    assert runs == ["budget=50,data.path=synthetic_data%2Fcloth%2Freference_tau0.5.npz,"
                     "method=paper_ea"]
     assert not (folder / "budget=50,data.path=README.md,method=paper_ea").exists()
 
@@ -159,6 +159,7 @@ def test_dask_sweep_with_a_failing_job_exits_2_and_keeps_the_other_jobs(tmp_path
     ("hydra.launcher.n_workers=abc", "hydra.launcher.n_workers='abc': expected an integer"),
     ("hydra.launcher.address=absent_scheduler.json", "no such scheduler file"),
     ("hydra.launcher.address=nonsense", "hydra.launcher.address=nonsense: not an address"),
+    ("hydra.launcher.memory_limit=abc", "hydra.launcher.memory_limit='abc': not a size"),
 ])
 def test_dask_settings_it_cannot_use_are_one_error_line(tmp_path, setting, message):
     done = run_cli("-m", "experiment=fig08_mesh", "zoom=3,4", "hydra/launcher=dask",

@@ -188,6 +188,14 @@ class DaskLauncher(Launcher):
                 or self.n_workers < 1):
             _refuse(f"hydra.launcher.n_workers={self.n_workers!r}: expected an integer >= 1 "
                     "(worker processes of the local cluster)")
+        if self.memory_limit is not None:
+            from dask.utils import parse_bytes
+
+            try:
+                parse_bytes(self.memory_limit)
+            except (ValueError, TypeError):
+                _refuse(f"hydra.launcher.memory_limit={self.memory_limit!r}: not a size; "
+                        "expected Dask's spelling (4GiB, 500MB) or null")
         options = {} if self.memory_limit is None else {"memory_limit": self.memory_limit}
         cluster = LocalCluster(n_workers=self.n_workers, threads_per_worker=1,
                                processes=True, host="127.0.0.1", dashboard_address=None,
@@ -204,7 +212,10 @@ class DaskLauncher(Launcher):
         state = SweepState(hydra_context=self.hydra_context, task_function=self.task_function,
                            config=self.config, singleton_state=Singleton.get_state(),
                            cwd=os.getcwd())
+        from concurrent.futures import CancelledError
+
         from distributed import as_completed
+        from distributed.scheduler import KilledWorker
 
         from replication.progress import bar, mode_for
 
@@ -216,11 +227,18 @@ class DaskLauncher(Launcher):
             futures = [client.submit(run_one_job, shared, list(overrides),
                                      initial_job_idx + offset, pure=False)
                        for offset, overrides in enumerate(job_overrides)]
-            with mode_for(OmegaConf.select(self.config, "progress")), \
-                    bar(len(futures), "sweep jobs") as jobs:
-                for _ in as_completed(futures):
-                    jobs.update()
-            done = client.gather(futures)
+            try:
+                with mode_for(OmegaConf.select(self.config, "progress")), \
+                        bar(len(futures), "sweep jobs") as jobs:
+                    for _ in as_completed(futures):
+                        jobs.update()
+                done = client.gather(futures)
+            except (CancelledError, KilledWorker) as error:
+                _refuse(f"the Dask cluster lost a worker during the sweep ("
+                        f"{type(error).__name__}): a job needed more memory than "
+                        f"hydra.launcher.memory_limit={self.memory_limit} allows, or the "
+                        "worker was stopped; raise the limit (or null), use fewer workers, "
+                        "and resume=true re-runs only the missing jobs")
         finally:
             client.close()
             if cluster is not None:

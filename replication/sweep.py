@@ -90,6 +90,60 @@ def check_one_experiment(results):
                          "expected one sweep of one experiment")
 
 
+def expected_runs(sweep_dir):
+    """The run folders (relative names) the last sweep into ``sweep_dir`` made, from its
+    ``multirun.yaml`` (Hydra's basic sweeper: every combination of the swept values), or
+    ``None`` when that cannot be told (no ``multirun.yaml``, another sweeper)."""
+    from hydra._internal.config_loader_impl import get_overrides_dirname
+    from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from omegaconf import OmegaConf
+
+    from replication.cli import folder_name
+
+    path = Path(sweep_dir) / "multirun.yaml"
+    if not path.is_file():
+        return None
+    try:
+        hydra = OmegaConf.load(path).hydra
+        if not str(hydra.sweeper._target_).endswith("BasicSweeper"):
+            return None
+        dirname = hydra.job.config.override_dirname
+        parser = OverridesParser.create()
+        batches = BasicSweeper.split_arguments(
+            parser.parse_overrides(list(hydra.overrides.task)), None)
+        return {folder_name(get_overrides_dirname(parser.parse_overrides(job),
+                                                  list(dirname.exclude_keys),
+                                                  dirname.item_sep, dirname.kv_sep))
+                for batch in batches for job in batch}
+    except Exception:  # noqa: BLE001  (a check only: no check rather than a failure)
+        return None
+
+
+def sweep_warnings(sweep_dir, runs):
+    """Lines on the runs of ``sweep_dir`` that do not match its last sweep: jobs without a
+    result (a sweep cut short) and results the last sweep did not make (an earlier sweep
+    into the same folder, gathered with it)."""
+    expected = expected_runs(sweep_dir)
+    if expected is None:
+        return []
+    found = {Path(run).as_posix() for run in runs}
+    lines = []
+    missing = sorted(expected - found)
+    if missing:
+        lines.append(f"warning: {len(missing)} of the {len(expected)} jobs of the last sweep "
+                     f"(multirun.yaml) have no result.json, e.g. {missing[0]}: the CSV "
+                     "leaves them out (a sweep cut short or a refused job; the same command "
+                     "with resume=true runs only those)")
+    extra = sorted(found - expected)
+    if extra:
+        lines.append(f"warning: {len(extra)} result(s) below {sweep_dir} were not made by "
+                     f"its last sweep (multirun.yaml), e.g. {extra[0]}: an earlier sweep "
+                     "into the same folder; the CSV holds both (as a study of several "
+                     "sweeps wants; hydra.sweep.dir=DIR keeps sweeps apart)")
+    return lines
+
+
 def gather(sweep_dir, results=None):
     """Rows (dicts) for every ``result.json`` below ``sweep_dir`` (or for ``results``, as
     :func:`load_results` gives them), sorted by folder.
@@ -341,6 +395,10 @@ def _main(argv=None):
               "with one result.json per run below it)", file=sys.stderr)
         return 2
     output = Path(args.output) if args.output else sweep_dir / "results.csv"
+    if output.is_dir():
+        print(f"error: --output {output}: is a folder; expected a CSV file path "
+              "(e.g. --output results/my_sweep.csv)", file=sys.stderr)
+        return 2
     if not output.parent.is_dir():
         print(f"error: --output {output}: no folder {output.parent}; expected a path in "
               "an existing folder", file=sys.stderr)
@@ -357,6 +415,8 @@ def _main(argv=None):
     if not rows:
         print(f"error: {sweep_dir}: no result.json below it", file=sys.stderr)
         return 2
+    for line in sweep_warnings(sweep_dir, [run for run, _ in results]):
+        print(line, file=sys.stderr)
     metrics = args.metric
     if not metrics:  # the config's list is a default: plot those these runs have
         metrics = configured_metrics(results)

@@ -40,6 +40,15 @@ def test_multirun_resume_and_gather(tmp_path):
     rows = list(csv.DictReader(open(sweep / "results.csv")))
     assert [row["override.zoom"] for row in rows] == ["3", "4"]
     assert all(row["n_springs"] == "1566" for row in rows)
+    # the gatherer compares the runs with the last sweep (multirun.yaml): a job without a
+    # result, and a result of another sweep into the same folder, are warned
+    from replication.sweep import expected_runs, sweep_warnings
+
+    names = sorted(p.parent.name for p in results)
+    assert expected_runs(sweep) == set(names)
+    assert sweep_warnings(sweep, names) == []
+    warnings = sweep_warnings(sweep, [names[0], "zoom=9"])
+    assert len(warnings) == 2 and "1 of the 2 jobs" in warnings[0] and "zoom=9" in warnings[1]
 
 
 def test_gather_refuses_empty_folder(tmp_path, capsys):

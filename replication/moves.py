@@ -86,6 +86,13 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("before", help="the commit before the move")
     args = parser.parse_args(argv)
+    known = subprocess.run(["git", "rev-parse", "--verify", "--quiet",
+                            f"{args.before}^{{commit}}"], cwd=PROJECT_ROOT,
+                           capture_output=True, text=True)
+    if known.returncode != 0:
+        print(f"error: {args.before}: not a commit of this repository; expected the commit "
+              "before the move (git log)", file=sys.stderr)
+        return 2
     result = record(args.before)
     MOVES_RECORD.write_text(json.dumps(result, indent=1) + "\n")
     print(f"{len(result['runners'])} runners moved purely; not pure: "

@@ -394,6 +394,11 @@ def _main(argv=None):
         print(f"error: {sweep_dir}: {found}; expected a sweep folder (multirun/NAME, "
               "with one result.json per run below it)", file=sys.stderr)
         return 2
+    if (sweep_dir / "result.json").is_file():
+        print(f"error: {sweep_dir}: the folder of one run (result.json in it); expected a "
+              "sweep folder (multirun/NAME, with one result.json per run below it)",
+              file=sys.stderr)
+        return 2
     output = Path(args.output) if args.output else sweep_dir / "results.csv"
     if output.is_dir():
         print(f"error: --output {output}: is a folder; expected a CSV file path "

@@ -311,3 +311,11 @@ def test_a_failing_pool_block_drops_its_queued_tasks():
             raise RuntimeError("stop")
     assert sum(f.cancelled() for f in futures) > 30
     assert time.perf_counter() - start < 6   # the 39 tasks left would take 7.8 s
+
+
+def test_moves_refuses_an_unknown_commit_in_one_line(capsys):
+    from replication import moves
+
+    assert moves.main(["no-such-commit"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: no-such-commit: not a commit") and err.count("\n") == 1

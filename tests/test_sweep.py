@@ -190,3 +190,9 @@ def test_a_path_value_gives_one_run_folder_read_back_by_the_gatherer():
     assert "/" not in name
     assert overrides_of(name) == {"override.data.path": "mine/data/k4%.npz",
                                   "override.seed": "0"}
+
+
+def test_gather_refuses_the_folder_of_one_run(tmp_path, capsys):
+    (tmp_path / "result.json").write_text(json.dumps({"experiment": "fig08_mesh"}))
+    assert gather_main([str(tmp_path)]) == 2
+    assert "the folder of one run" in capsys.readouterr().err

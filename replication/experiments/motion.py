@@ -17,6 +17,7 @@ from replication.errors import check
 from replication.motion import baselines, irc, single
 from replication.motion.derivatives import default_border, sequence_derivatives, too_small
 from replication.motion.io import (
+    check_shape,
     read_manifest_sequences,
     read_sequence,
     write_sequence_folder,
@@ -44,6 +45,8 @@ def _check_spec(name, spec):
         check(key in spec, f"{where}: no '{key}'; expected it in the sequence or in 'base'")
     check(len(spec["center"]) == 2, f"{where}.center: {spec['center']}; expected [xi, eta]")
     check(spec["omega"] != 0, f"{where}.omega: 0; expected a non-zero rotation (rad/frame)")
+    if "shape" in spec:
+        check_shape(f"{where}.shape", spec["shape"])
     check(int(spec.get("n_frames", 2)) >= 2,
           f"{where}.n_frames: {spec.get('n_frames')}; expected at least 2")
     check(spec.get("format", "npz") in ("npz", "png8", "png16"),

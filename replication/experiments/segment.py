@@ -14,6 +14,7 @@ import numpy as np
 
 from replication.errors import check
 from replication.motion.io import (
+    check_shape,
     read_manifest_sequences,
     read_sequence,
     write_sequence_folder,
@@ -59,6 +60,8 @@ def make_data(config, out):
             check_object(f"sequences.{name}.objects[{k}]", item)
         check(spec.get("format", "npz") in ("npz", "png8", "png16"),
               f"sequences.{name}.format: {spec.get('format')}; expected npz, png8 or png16")
+        if "shape" in spec:
+            check_shape(f"sequences.{name}.shape", spec["shape"])
     data_dir = Path(config["data_dir"])
     files, summary = {}, {}
     for index, (name, spec) in enumerate(specs.items()):

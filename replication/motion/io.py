@@ -110,6 +110,8 @@ def read_image(path):
             with Image.open(path) as handle:
                 _check_size(path, (handle.height, handle.width))
                 image = _pil_array(handle)
+    except InputError:
+        raise  # a readable frame refused for its size, named as such
     except (OSError, ValueError, SyntaxError) as error:
         raise InputError(f"{path}: cannot be read as an image ({_reason(error)}); expected a "
                          "PNG, TIFF or JPEG frame") from None
@@ -229,14 +231,26 @@ def _check_size(path, shape):
               f"at most limits.max_frame_pixels={limit:.0f} pixels per frame")
 
 
+MIN_SIDE = 8  # pixels: the smallest frame side the readers take
+
+
+def check_shape(where, shape):
+    """Refuse a generator's frame ``shape`` (H, W) that the readers would refuse."""
+    from replication.errors import check
+
+    check(len(shape) == 2 and min(int(v) for v in shape) >= MIN_SIDE,
+          f"{where}: {list(shape)}; expected [H, W] of at least {MIN_SIDE} pixels each (the "
+          "readers refuse smaller frames)")
+
+
 def _check_frames(path, frames):
     if frames.ndim != 3:
         _fail(path, "frames", f"shape {frames.shape}", "(T, H, W)")
     if frames.shape[0] < 2:
         _fail(path, "frames", f"T = {frames.shape[0]} frame(s)", "T >= 2 frames")
-    if frames.shape[1] < 8 or frames.shape[2] < 8:
+    if frames.shape[1] < MIN_SIDE or frames.shape[2] < MIN_SIDE:
         _fail(path, "frames", f"frames of {frames.shape[1]} x {frames.shape[2]} pixels",
-              "at least 8 x 8 pixels")
+              f"at least {MIN_SIDE} x {MIN_SIDE} pixels")
     finite = np.isfinite(frames)
     if not finite.all():
         t = int(np.nonzero(~finite.reshape(frames.shape[0], -1).all(axis=1))[0][0])

@@ -196,3 +196,20 @@ def test_segment_multi_warns_of_an_object_centre_at_its_accumulator_edge():
     inside = {"xi": 100.0, "eta": 68.0, "grid": grid}
     warned = edge_warnings({"objects": [inside, edge]}, settings)
     assert len(warned) == 1 and warned[0].startswith("object 1: centre (-34, 68) is at the edge")
+
+
+@pytest.mark.parametrize("name", ["motion_data", "motion_multi_data"])
+def test_data_makers_refuse_frames_their_readers_refuse(name, tmp_path):
+    """motion_multi_data with base.shape=[4,4] wrote sequences its own reader refused."""
+    from hydra import compose, initialize_config_dir
+    from omegaconf import OmegaConf
+
+    from replication.cli import CONFIG_DIR, run_experiment
+
+    with initialize_config_dir(config_dir=CONFIG_DIR, version_base="1.3"):
+        config = OmegaConf.to_container(compose(config_name="config", overrides=[
+            f"experiment={name}", f"+smoke={name}", f"data_dir={tmp_path / 'data'}",
+            "base.shape=[4,4]"]), resolve=True)
+    with pytest.raises(InputError, match=r"\.shape: \[4, 4\]; expected \[H, W\] of at least 8"):
+        run_experiment(config, tmp_path / "out")
+    assert not (tmp_path / "data").exists()

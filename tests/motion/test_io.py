@@ -164,3 +164,15 @@ def test_notes_on_unpadded_frame_numbers_and_a_truth_without_objects(tmp_path, c
     err = capsys.readouterr().err
     assert "number order" not in err and "the truth has no 'objects' (keys: object)" in err
     assert sequence.truth == {"object": [{"xi": 1}]}
+
+
+def test_a_png_frame_over_the_pixel_limit_is_named_as_too_large(tmp_path, monkeypatch):
+    """It read as 'cannot be read as an image', as if the file were broken."""
+    from replication.guard import LIMITS
+
+    for t in range(2):
+        Image.fromarray(np.full((40, 40), 60 * t, np.uint8)).save(tmp_path / f"f{t}.png")
+    monkeypatch.setitem(LIMITS, "max_frame_pixels", 1000)
+    with pytest.raises(InputError, match="found frames of 40 x 40 pixels; expected at most "
+                                         "limits.max_frame_pixels=1000"):
+        read_sequence(tmp_path)

@@ -21,6 +21,7 @@ import numpy as np
 from replication.errors import check
 from replication.experiments import table1_readings
 from replication.figures import table1_sensitivity as figure
+from replication.progress import progress
 from replication.provenance import (
     NOT_RESULT_KEYS,
     PROJECT_ROOT,
@@ -274,6 +275,8 @@ def sensitivity_study(config, out):
     table1_2 = _copied_table1_2(table_result)
     lines = read_gathered(config["data_file"])
     readings = [reading_of(line) for line in lines]
+    progress(f"{config['data_file']}: {len(readings)} runs; checking each against the "
+             "current code, config and inputs")
     labels = sorted({label for r in readings for label in r["references"]})
     result = {"commands": sweep_commands(config), "table1_2": table1_2,
               "n_runs": len(readings), "labels": labels, "goal_rate": goal,

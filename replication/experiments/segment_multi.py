@@ -40,7 +40,8 @@ def _objects_json(objects, out):
         write_mask(Path(out) / name, item["mask"])
         rows.append({"xi": float(item["xi"]), "eta": float(item["eta"]),
                      "omega": float(item["omega"]), "area": int(item["area"]),
-                     "mask_file": name, "peak": int(item.get("peak", 0))})
+                     "mask_file": name, "peak": int(item.get("peak", 0)),
+                     "spread": item.get("spread")})
     return rows
 
 

@@ -530,8 +530,9 @@ def compose_first_job(args):
     value of each swept key once) and check them (:func:`check_config`), so that Hydra's
     refusals and bad values come as one :class:`InputError` line before any job runs or
     Hydra writes anything: the first job with the ``hydra`` overrides (a launcher or one
-    of its keys misspelt), every job's keys against its own experiment's config (a key
-    one swept experiment lacks), and a fixed ``out`` (every job would write there)."""
+    of its keys misspelt), in a sweep over experiments the keys set for all of them
+    against the root config (Hydra applies them to it first), and a fixed ``out`` (every
+    job would write there)."""
     from hydra import compose, initialize_config_dir
     from hydra.core.global_hydra import GlobalHydra
     from hydra.core.override_parser.overrides_parser import OverridesParser
@@ -540,27 +541,34 @@ def compose_first_job(args):
 
     GlobalHydra.instance().clear()
     try:
-        overrides, swept, launcher, plain = [], [], [], []
+        overrides, swept, launcher, plain, fixed = [], [], [], [], None
         for override in OverridesParser.create().parse_overrides(list(args)):
             if override.key_or_group.startswith("hydra"):
                 launcher.append(override.input_line)
                 continue
             key = override.get_key_element()
             if key == "out" and not override.is_sweep_override():
-                raise InputError(f"{override.input_line} in a sweep: every job would write "
-                                 "that folder and only the last result would stay; leave "
-                                 "out unset (each job writes multirun/NAME/OVERRIDES, or "
-                                 "hydra.sweep.dir=DIR/OVERRIDES) or sweep it (out=A,B)")
+                fixed = override.input_line
             if override.is_sweep_override():
                 values = list(override.sweep_string_iterator())
                 overrides.append(f"{key}={values[0]}" if values else override.input_line)
                 swept.extend((len(overrides) - 1, f"{key}={value}") for value in values[1:])
+            elif not (override.is_add() or override.is_force_add()
+                      or (Path(CONFIG_DIR) / override.key_or_group).is_dir()):
+                overrides.append(override.input_line)
+                plain.append(override.key_or_group)
             else:
                 overrides.append(override.input_line)
-            if (not (override.is_add() or override.is_force_add())
-                    and not (Path(CONFIG_DIR) / override.key_or_group).is_dir()):
-                plain.append(override.key_or_group)
         jobs = [overrides] + [overrides[:i] + [line] + overrides[i + 1:] for i, line in swept]
+        # one folder for every job (not null, not made per job with ${...}): only the last
+        # job's result would stay
+        if (len(jobs) > 1 and fixed is not None and "${" not in fixed
+                and fixed.split("=", 1)[1].strip() not in ("", "null")):
+            raise InputError(f"{fixed} in a sweep: every job would write that folder and "
+                             "only the last result would stay; leave out unset (each job "
+                             "writes multirun/NAME/OVERRIDES, or hydra.sweep.dir=DIR/"
+                             "OVERRIDES), sweep it (out=A,B) or make it per job "
+                             "(out=DIR/${seed})")
         with initialize_config_dir(config_dir=CONFIG_DIR, version_base="1.3"):
             compose(config_name="config", overrides=overrides + launcher,
                     return_hydra_config=True)
@@ -575,7 +583,6 @@ def compose_first_job(args):
                     own = OmegaConf.to_container(compose(
                         config_name="config", overrides=[f"experiment={name}"]), resolve=True)
                     defaults = own if defaults is None else defaults
-                    _check_keys_exist(plain, own, name, list(args))
                 if config.get("runner"):
                     check_config(config, own)
         if config.get("runner"):
@@ -587,31 +594,21 @@ def compose_first_job(args):
 
 
 def _check_shared_keys(keys, root):
-    """Refuse, in a sweep over experiments, a key the root config (``configs/config.yaml``)
-    lacks: Hydra applies the sweep's other overrides to it before any experiment."""
+    """Refuse, in a sweep over experiments, a key (not swept) the root config
+    (``configs/config.yaml``) lacks: Hydra applies the sweep's other overrides to it
+    before any experiment."""
     root = OmegaConf.to_container(root)
     for key in keys:
         node = root
         for part in key.split("."):
+            if isinstance(node, list) and part.isdigit() and int(part) < len(node):
+                node = node[int(part)]
+                continue
             if not (isinstance(node, dict) and part in node):
                 raise InputError(
                     f"{key}: a sweep over experiments can set only the keys every "
                     "experiment shares (configs/config.yaml: seed, out, resume, strict, "
                     "data.path, limits...); sweep each experiment on its own to set it")
-            node = node[part]
-
-
-def _check_keys_exist(keys, config, name, overrides):
-    """Refuse an override of a key ``name``'s config does not hold (Hydra refuses it when
-    the job starts, in a sweep over experiments after the other jobs ran)."""
-    for key in keys:
-        node = config
-        for part in key.split("."):
-            if not (isinstance(node, dict) and part in node):
-                close = _close_keys(key, [f"experiment={name}"])
-                hint = f"; did you mean {' or '.join(close)}?" if close else ""
-                raise InputError(f"{key}: {name}'s config has no such key{hint} (a sweep "
-                                 "over experiments sets every key in every job)")
             node = node[part]
 
 

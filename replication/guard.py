@@ -101,10 +101,6 @@ def _fits(expected, value):
     return True
 
 
-# keys whose null is a setting of its own whatever the experiment's value: no budget
-NULLABLE = ("budget",)
-
-
 def check_types(defaults, config, where=""):
     """Refuse values of ``config`` whose kind differs from the experiment's own value in
     ``defaults``, and non-finite numbers where the experiment has a finite one.
@@ -129,8 +125,6 @@ def check_types(defaults, config, where=""):
         for index, value in enumerate(config):
             model = defaults[index] if index < len(defaults) else defaults[0]
             check_types(model, value, f"{where}[{index}]")
-        return
-    if config is None and where.rsplit(".", 1)[-1] in NULLABLE:
         return
     if not _fits(defaults, config):
         raise InputError(f"{where}={show(config)}: expected {_kind(defaults)} (as in the "

@@ -90,10 +90,14 @@ def check_one_experiment(results):
                          "expected one sweep of one experiment")
 
 
+SUITE_SUBDIR = "${folder_name:${hydra.job.override_dirname}}"  # configs/config.yaml
+
+
 def expected_runs(sweep_dir):
     """The run folders (relative names) the last sweep into ``sweep_dir`` made, from its
     ``multirun.yaml`` (Hydra's basic sweeper: every combination of the swept values), or
-    ``None`` when that cannot be told (no ``multirun.yaml``, another sweeper)."""
+    ``None`` when that cannot be told (no ``multirun.yaml``, another sweeper, another
+    ``hydra.sweep.subdir`` than the suite's)."""
     from hydra._internal.config_loader_impl import get_overrides_dirname
     from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
     from hydra.core.override_parser.overrides_parser import OverridesParser
@@ -106,7 +110,9 @@ def expected_runs(sweep_dir):
         return None
     try:
         hydra = OmegaConf.load(path).hydra
-        if not str(hydra.sweeper._target_).endswith("BasicSweeper"):
+        subdir = OmegaConf.to_container(hydra.sweep, resolve=False)["subdir"]
+        if (not str(hydra.sweeper._target_).endswith("BasicSweeper")
+                or subdir != SUITE_SUBDIR):
             return None
         dirname = hydra.job.config.override_dirname
         parser = OverridesParser.create()
@@ -124,10 +130,13 @@ def sweep_warnings(sweep_dir, runs):
     """Lines on the runs of ``sweep_dir`` that do not match its last sweep: jobs without a
     result (a sweep cut short) and results the last sweep did not make (an earlier sweep
     into the same folder, gathered with it)."""
+    from replication.cli import folder_name
+
     expected = expected_runs(sweep_dir)
     if expected is None:
         return []
-    found = {Path(run).as_posix() for run in runs}
+    # a sweep made before '/' was written %2F nested its folders: the same names
+    found = {folder_name(Path(run).as_posix()) for run in runs}
     lines = []
     missing = sorted(expected - found)
     if missing:
@@ -393,11 +402,6 @@ def _main(argv=None):
         found = "is a file" if sweep_dir.exists() else "no such folder"
         print(f"error: {sweep_dir}: {found}; expected a sweep folder (multirun/NAME, "
               "with one result.json per run below it)", file=sys.stderr)
-        return 2
-    if (sweep_dir / "result.json").is_file():
-        print(f"error: {sweep_dir}: the folder of one run (result.json in it); expected a "
-              "sweep folder (multirun/NAME, with one result.json per run below it)",
-              file=sys.stderr)
         return 2
     output = Path(args.output) if args.output else sweep_dir / "results.csv"
     if output.is_dir():

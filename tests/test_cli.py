@@ -174,16 +174,16 @@ def test_sweep_refusals_come_before_any_job(args, message):
 
     with pytest.raises(InputError, match=re.escape(message)):
         compose_first_job(args)
-    compose_first_job(["experiment=cloth_identify", "seed=0,1", "out=o/a,o/b"])
-    compose_first_job(["experiment=fig08_mesh,cloth_identify", "seed=3"])
-
-
-def test_budget_null_means_no_budget_and_other_nulls_are_refused():
-    from replication.guard import check_types
-
-    check_types({"budget": 5000}, {"budget": None})
-    with pytest.raises(InputError, match=re.escape("method.sigma=null: expected")):
-        check_types({"method": {"sigma": 1.5}}, {"method": {"sigma": None}})
+    # sweeps Hydra runs (a reviewer's list): an out per job or none, one job, a swept key
+    # in a sweep over experiments, a list index
+    for legit in (["experiment=cloth_identify", "seed=0,1", "out=o/a,o/b"],
+                  ["experiment=cloth_identify", "seed=0,1", "out=null"],
+                  ["experiment=cloth_identify", "seed=0,1", "out=o/${seed}"],
+                  ["experiment=fig08_mesh", "out=o/d"],
+                  ["experiment=fig08_mesh,cloth_identify", "seed=3"],
+                  ["experiment=cloth_identify,cloth_identify_18", "budget=300,600"],
+                  ["experiment=cloth_reference", "taus.0=0.3,0.4"]):
+        compose_first_job(legit)
 
 
 def test_glob_of_files_gets_a_hint():

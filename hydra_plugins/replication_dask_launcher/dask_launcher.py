@@ -188,14 +188,14 @@ class DaskLauncher(Launcher):
                 or self.n_workers < 1):
             _refuse(f"hydra.launcher.n_workers={self.n_workers!r}: expected an integer >= 1 "
                     "(worker processes of the local cluster)")
-        if self.memory_limit is not None:
+        if self.memory_limit is not None and str(self.memory_limit) != "auto":
             from dask.utils import parse_bytes
 
             try:
                 parse_bytes(self.memory_limit)
             except (ValueError, TypeError):
                 _refuse(f"hydra.launcher.memory_limit={self.memory_limit!r}: not a size; "
-                        "expected Dask's spelling (4GiB, 500MB) or null")
+                        "expected Dask's spelling (4GiB, 500MB), auto or null")
         options = {} if self.memory_limit is None else {"memory_limit": self.memory_limit}
         cluster = LocalCluster(n_workers=self.n_workers, threads_per_worker=1,
                                processes=True, host="127.0.0.1", dashboard_address=None,

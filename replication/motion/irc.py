@@ -474,8 +474,9 @@ def rigid_spread(a, b, weights, blocks, matrix, centre):
     The equations of one block (``blocks``: a label per row, e.g. a square tile of the
     frame) are left out in turn and the step is solved again; neighbouring pixels share
     their noise through the smoothing, so whole tiles are left out, not single pixels.
-    More than ``SPREAD_GROUPS`` blocks are dealt out into that many groups (tile ``k`` in
-    group ``k mod SPREAD_GROUPS``), and the groups are left out in turn.
+    Only blocks holding weighted rows count; more than ``SPREAD_GROUPS`` of them are dealt
+    out into that many groups (the ``k``-th in group ``k mod SPREAD_GROUPS``), and the
+    groups are left out in turn.
 
     Parameters
     ----------
@@ -494,10 +495,12 @@ def rigid_spread(a, b, weights, blocks, matrix, centre):
         ``xi_sd``, ``eta_sd``, ``omega_sd`` and ``blocks`` (the number of blocks or groups
         left out in turn); ``None`` with fewer than 4 of them holding weighted rows.
     """
-    labels, blocks = np.unique(blocks, return_inverse=True)
+    weighted = weights > 0  # rows of zero weight (outside the object) count for nothing
+    a, b, weights = a[weighted], b[weighted], weights[weighted]
+    labels, blocks = np.unique(blocks[weighted], return_inverse=True)
     if labels.size > SPREAD_GROUPS:  # a grouped jackknife: whole tiles, dealt out in turn
         blocks = blocks % SPREAD_GROUPS
-    labels = np.unique(blocks[weights > 0])
+    labels = np.unique(blocks)
     if labels.size < 4:
         return None
     # the normal equations of each block; leaving one out subtracts its share

@@ -256,7 +256,8 @@ def _spread_lines(coverage):
                 "through the smoothing). It measures the noise of the estimate, not its "
                 "bias; a spread above 1 px (and 0.2 % of the frame's larger side) is warned "
                 "by `motion_single`. For a Gaussian error, 2 spreads (the x and y spreads "
-                "combined) would cover 98 % of the errors:", "", *lines]
+                "combined) would cover between 95 % (one much larger than the other) and "
+                "98 % (equal) of the errors:", "", *lines]
 
 
 def accuracy_section(result):

@@ -188,3 +188,13 @@ def test_a_text_file_named_npz_is_not_called_pickled_data(tmp_path):
     with pytest.raises(InputError, match="not with a zip archive's") as error:
         read_trajectory(path)
     assert "pickle" not in str(error.value)
+
+
+def test_too_few_frames_for_a_fourth_difference_give_no_data_noise(runs):
+    """A 4-frame file (the reader takes T >= 3): the median of no fourth differences was
+    NaN, written as such, and the warning could never fire."""
+    short = _write(runs["folder"] / "short.npz", runs[0.01][:4])
+    cost = problem.cost_from_config(short, {"kind": "small", "frame": 1})
+    found = problem.residual_fit(cost, np.array([H, H * math.sqrt(2), 2 * H, 4.0, 0.01]))
+    assert found["data_noise_h"] is None and found["robust_misfit"] is None
+    assert np.isfinite(found["misfit"])

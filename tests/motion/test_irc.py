@@ -197,3 +197,18 @@ def test_rigid_spread_deals_many_tiles_into_groups():
     spread = irc.rigid_spread(a, b, np.ones(n), tiles, irc.rigid_matrix(5.0, 5.0, 0.01),
                               np.array([5.0, 5.0]))
     assert spread["blocks"] == irc.SPREAD_GROUPS
+
+
+def test_rigid_spread_counts_only_tiles_with_weight():
+    """A small object on a large frame: the refinement writes rows for the whole frame's
+    gradient mask with weight 0 outside the object; those tiles grouped the object's 36
+    tiles into 6 (or none)."""
+    rng = np.random.default_rng(2)
+    x, y = np.meshgrid(np.arange(1024.0), np.arange(256.0))
+    x, y = x.ravel()[::7], y.ravel()[::7]
+    n = x.size
+    a, b = rng.normal(size=(n, 3)), rng.normal(size=n) * 1e-3
+    weights = ((x < 96) & (y < 96)).astype(float)        # 6 x 6 tiles of 16 px
+    spread = irc.rigid_spread(a, b, weights, irc.spread_tiles(x, y),
+                              irc.rigid_matrix(40.0, 40.0, 0.02), np.array([40.0, 40.0]))
+    assert spread["blocks"] == 36

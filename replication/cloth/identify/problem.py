@@ -258,7 +258,8 @@ def residual_fit(cost, best):
       fourth difference in time over the same frames), and ``robust_misfit``: the square
       of the typical one-step residual (:func:`~replication.cloth.noise.
       robust_residual_sigma`) over it, 0 when the residuals are below ``SIGMA_FLOOR_H``.
-      Near 1 or below when the model explains the data up to noise. ``misfit`` measures
+      Near 1 or below when the model explains the data up to noise; both ``None`` with
+      fewer than 5 frames around the cost's. ``misfit`` measures
       the noise on the residuals themselves, so an answer far off whose residuals look
       like noise (a wrong tau that turns the constraint off leaves kinks everywhere) can
       pass it; ``robust_misfit`` compares with the data instead. Strongly uneven noise
@@ -290,12 +291,16 @@ def _residual_fit(cost, best):
     # the fourth differences centred on the residuals' frames
     positions = cost.trajectory.positions
     window = positions[max(frames[0] - 2, 0): frames[-1] + 3]
-    data_sigma = data_noise_sigma(window.reshape(len(window), -1, 3), data.free)
-    typical = robust_residual_sigma(r, data.free)
-    floor = SIGMA_FLOOR_H * data.h
-    robust = (max(typical, floor) / max(data_sigma, floor)) ** 2 if typical > floor else 0.0
+    data_h, robust = None, None   # fewer than 5 frames: no fourth difference
+    if len(window) >= 5:
+        data_sigma = data_noise_sigma(window.reshape(len(window), -1, 3), data.free)
+        typical = robust_residual_sigma(r, data.free)
+        floor = SIGMA_FLOOR_H * data.h
+        robust = ((max(typical, floor) / max(data_sigma, floor)) ** 2
+                  if typical > floor else 0.0)
+        data_h = data_sigma / data.h
     return sigma, {"noise_h": sigma / data.h, "misfit": excess_power(r, data.free, sigma),
-                   "data_noise_h": data_sigma / data.h, "robust_misfit": robust,
+                   "data_noise_h": data_h, "robust_misfit": robust,
                    "residual_frames": [int(frames[0]), int(frames[-1])]}
 
 
@@ -321,7 +326,7 @@ def diagnostic_warnings(diagnostics, best, names):
             f"{diagnostics['misfit']:.3g} x what the position noise explains: the answer "
             "is off (approximate, or a local optimum), the data are in other units or "
             "another dt, or the model lacks an effect (the discrepancy workflow finds which)")
-    elif diagnostics.get("robust_misfit", 0.0) > MISFIT_WARN:
+    elif (diagnostics.get("robust_misfit") or 0.0) > MISFIT_WARN:
         warnings.append(
             f"the model at these parameters leaves typical one-step residuals "
             f"{diagnostics['robust_misfit']:.3g} x (in power) the noise the data show "

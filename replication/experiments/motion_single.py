@@ -28,6 +28,8 @@ from replication.progress import bar, progress
 
 # a refinement on fewer pixels than this is reported with a warning
 MIN_REFINE_PIXELS = 100
+# a spread from fewer tiles than this is called rough
+FEW_BLOCKS = 8
 
 
 # the refined centre this many frame sizes away: a translation, not a rotation in view
@@ -94,8 +96,16 @@ def answer_warnings(paper, refined, settings, grid=None, shape=None):
         allowed = spread_allowed(shape)
         if centre_sd > allowed:
             warnings.append(f"irc_refined centre spread (block jackknife) is {centre_sd:.3g} "
-                            f"px, above {allowed:.3g} px: expect centre errors of that "
-                            "order or more (noise, few textured pixels)")
+                            f"px, above {allowed:.3g} px: the centre is uncertain by at "
+                            "least that much, and by several times more on low-contrast "
+                            "texture or a centre far from the object (the spread measures "
+                            "noise, not bias)")
+        elif spread["blocks"] < FEW_BLOCKS:
+            warnings.append(f"irc_refined spread from {spread['blocks']} tiles only: a rough "
+                            "estimate (a small object)")
+    elif "spread" in refined and refined.get("pixels", 0) >= MIN_REFINE_PIXELS:
+        warnings.append("irc_refined has no spread: its pixels fall in fewer than 4 tiles "
+                        "of 16 px (a small object), so nothing measures its noise")
     return warnings
 
 

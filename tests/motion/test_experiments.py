@@ -92,9 +92,16 @@ def test_answer_warnings_flag_a_translation_and_a_centre_at_the_accumulator_edge
     assert any("edge of the accumulator" in w
                for w in answer_warnings(edge, inside, settings, grid, (64, 64)))
     # a refined centre spread above 1 px (and 0.2% of the larger side) is warned
-    steady = dict(inside, spread={"xi_sd": 0.3, "eta_sd": 0.4, "omega_sd": 1e-4})
+    steady = dict(inside, spread={"xi_sd": 0.3, "eta_sd": 0.4, "omega_sd": 1e-4, "blocks": 30})
     assert answer_warnings(inside, steady, settings, grid, (64, 64)) == []
-    noisy = dict(inside, spread={"xi_sd": 0.9, "eta_sd": 0.9, "omega_sd": 1e-3})
+    rough = dict(steady, spread=dict(steady["spread"], blocks=5))
+    assert [w[:36] for w in answer_warnings(inside, rough, settings, grid, (64, 64))] == [
+        "irc_refined spread from 5 tiles only"]
+    # an outside user's small object: no spread and, before, no warning at all
+    none = dict(inside, spread=None)
+    assert any("has no spread" in w for w in answer_warnings(inside, none, settings, grid,
+                                                            (64, 64)))
+    noisy = dict(inside, spread={"xi_sd": 0.9, "eta_sd": 0.9, "omega_sd": 1e-3, "blocks": 30})
     assert any("centre spread (block jackknife) is 1.27 px" in w
                for w in answer_warnings(inside, noisy, settings, grid, (64, 64)))
     assert answer_warnings(inside, noisy, settings, grid, (1024, 640)) == []  # 2.05 px allowed

@@ -63,7 +63,15 @@ def keep_committed(config, out):
     and per move ``(new path, note)``, the note to print once the run has written there;
     ``force=true`` keeps them. A run
     with ``out=DIR`` does not replace the committed data and figures that later runs and
-    ``replicate-all`` read."""
+    ``replicate-all`` read.
+
+    Parameters
+    ----------
+    config : dict
+        The resolved config (plain dict).
+    out : str or Path
+        The run's output folder.
+    """
     notes = []
     if config.get("force"):
         return config, notes

@@ -129,7 +129,14 @@ def expected_runs(sweep_dir):
 def sweep_warnings(sweep_dir, runs):
     """Lines on the runs of ``sweep_dir`` that do not match its last sweep: jobs without a
     result (a sweep cut short) and results the last sweep did not make (an earlier sweep
-    into the same folder, gathered with it)."""
+    into the same folder, gathered with it).
+
+    Parameters
+    ----------
+    sweep_dir : str or Path
+    runs : list of str or Path
+        The run folders found, relative to ``sweep_dir``.
+    """
     from replication.cli import folder_name
 
     expected = expected_runs(sweep_dir)

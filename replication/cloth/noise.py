@@ -48,7 +48,13 @@ MAD_TO_SD = 1.4826  # a Gaussian's standard deviation over its median absolute d
 def robust_residual_sigma(r, free):
     """Position noise from the median absolute one-step residual of the ``free`` particles
     (``r`` (F, P, 3); white noise gives residuals of variance ``6 sigma^2``): what most
-    particle-frames show, not the few where a constraint acts or a model error peaks."""
+    particle-frames show, not the few where a constraint acts or a model error peaks.
+
+    Parameters
+    ----------
+    r : (F, P, 3) ndarray
+    free : (P,) bool ndarray
+    """
     return float(np.median(np.abs(r[:, free])) * MAD_TO_SD / np.sqrt(6.0))
 
 
@@ -57,7 +63,13 @@ def data_noise_sigma(positions, free):
     difference in time of the ``free`` particles' positions ``(F, P, 3)`` (white noise gives
     variance ``70 sigma^2``). The motion's own fourth differences add to it, so on smooth
     noise-free data it is an upper bound near the motion's smoothness (about 1e-7 to 1e-6 h
-    for the reference runs)."""
+    for the reference runs).
+
+    Parameters
+    ----------
+    positions : (F, P, 3) ndarray
+    free : (P,) bool ndarray
+    """
     x = np.asarray(positions)[:, free]
     fourth = x[4:] - 4 * x[3:-1] + 6 * x[2:-2] - 4 * x[1:-3] + x[:-4]
     return float(np.median(np.abs(fourth)) * MAD_TO_SD / np.sqrt(70.0))

@@ -235,7 +235,14 @@ MIN_SIDE = 8  # pixels: the smallest frame side the readers take
 
 
 def check_shape(where, shape):
-    """Refuse a generator's frame ``shape`` (H, W) that the readers would refuse."""
+    """Refuse a generator's frame ``shape`` (H, W) that the readers would refuse.
+
+    Parameters
+    ----------
+    where : str
+        The config key, for the message.
+    shape : sequence of int
+    """
     from replication.errors import check
 
     check(len(shape) == 2 and min(int(v) for v in shape) >= MIN_SIDE,

@@ -336,7 +336,13 @@ SPREAD_GROUPS = 64  # at most this many solves: more tiles are dealt out into th
 
 
 def spread_tiles(x, y):
-    """Label of the ``SPREAD_TILE``-pixel square tile holding each pixel ``(x, y)``."""
+    """Label of the ``SPREAD_TILE``-pixel square tile holding each pixel ``(x, y)``.
+
+    Parameters
+    ----------
+    x, y : (n,) array_like
+        Pixel coordinates (column, row).
+    """
     column = np.floor(np.asarray(x) / SPREAD_TILE).astype(np.int64)
     row = np.floor(np.asarray(y) / SPREAD_TILE).astype(np.int64)
     return row * 1_000_003 + column

@@ -6,7 +6,6 @@ which import no figure: a change to Figs. 1-4 makes only this experiment stale.
 
 from __future__ import annotations
 
-import math
 import time
 from pathlib import Path
 
@@ -14,6 +13,7 @@ import numpy as np
 
 from replication.experiments.motion import (
     EDGE_CELLS,
+    centre_spread,
     spread_allowed,
     _check_settings,
     _load,
@@ -92,7 +92,7 @@ def answer_warnings(paper, refined, settings, grid=None, shape=None):
                         f"[{low:g}, {high:g}]")
     spread = refined.get("spread")
     if spread is not None:
-        centre_sd = math.hypot(spread["xi_sd"], spread["eta_sd"])
+        centre_sd = centre_spread(refined)
         allowed = spread_allowed(shape)
         if centre_sd > allowed:
             warnings.append(f"irc_refined centre spread (block jackknife) is {centre_sd:.3g} "

@@ -515,10 +515,11 @@ def rigid_spread(a, b, weights, blocks, matrix, centre):
     normal = np.array([[np.bincount(blocks, wa[:, i] * a[:, j], size) for j in range(3)]
                        for i in range(3)])
     right = np.array([np.bincount(blocks, wa[:, i] * b, size) for i in range(3)])
+    all_normal, all_right = normal.sum(axis=2), right.sum(axis=1)
     replicates = []
     for label in labels:
-        kept_normal = normal.sum(axis=2) - normal[:, :, label]
-        kept_right = right.sum(axis=1) - right[:, label]
+        kept_normal = all_normal - normal[:, :, label]
+        kept_right = all_right - right[:, label]
         try:
             d_omega, p, q = np.linalg.solve(kept_normal, kept_right)
         except np.linalg.LinAlgError:
@@ -581,13 +582,12 @@ def refine(frames, xi, eta, omega, region, *, sigma=1.5, relative_threshold=0.15
     for _ in range(max_iter):
         iterations += 1
         centre = np.array(matrix_to_irc(matrix)[:2])
-        rows_a, rows_b, weights, tiles = [], [], [], []
+        rows_a, rows_b, weights, masks = [], [], [], []
         for t in range(len(smoothed) - 1):
             a, b, static, mask = _warped_equations(smoothed[t], smoothed[t + 1], matrix, centre,
                                            border=border,
                                            relative_threshold=relative_threshold)
-            ys, xs = np.nonzero(mask)
-            tiles.append(spread_tiles(xs, ys))
+            masks.append(mask)
             inside = move_region(region, matrix, t)[mask]
             if t == 0:
                 gradient = mask
@@ -603,12 +603,16 @@ def refine(frames, xi, eta, omega, region, *, sigma=1.5, relative_threshold=0.15
         if used < 3:
             break
         update, d_omega, shift = rigid_update(a, b, w, centre)
-        last = (a, b, w, np.concatenate(tiles), matrix, centre)
+        last = (a, b, w, masks, matrix, centre)
         matrix = matrix @ update
         if abs(d_omega) < tol and shift < 1000 * tol:
             break
     xi_r, eta_r, omega_r = matrix_to_irc(matrix)
-    spread = rigid_spread(*last) if used >= 3 else None
+    spread = None
+    if used >= 3:  # the tiles of the last step's rows (boolean masks index row-major)
+        a, b, w, masks, start, centre = last
+        tiles = np.concatenate([spread_tiles(*np.nonzero(m)[::-1]) for m in masks])
+        spread = rigid_spread(a, b, w, tiles, start, centre)
     return {"xi": xi_r, "eta": eta_r, "omega": omega_r, "iterations": iterations,
             "pixels": used, "gradient": gradient, "consistent": consistent,
             "spread": spread}

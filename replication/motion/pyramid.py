@@ -383,7 +383,7 @@ def refine_sampled(samples, matrix, *, border, tukey_c=1.0, max_iter=10, tol=1e-
     for _ in range(max_iter):
         iterations += 1
         centre = np.array(irc.matrix_to_irc(matrix)[:2])
-        rows_a, rows_b, weights, tiles = [], [], [], []
+        rows_a, rows_b, weights, kept = [], [], [], []
         for sample in samples:
             if sample is None or sample.x.size == 0:
                 continue
@@ -391,7 +391,7 @@ def refine_sampled(samples, matrix, *, border, tukey_c=1.0, max_iter=10, tol=1e-
             rows_a.append(a)
             rows_b.append(b)
             weights.append(irc.tukey_weights(b, tukey_c) * (np.abs(b) <= np.abs(static)))
-            tiles.append(irc.spread_tiles(sample.x[keep], sample.y[keep]))
+            kept.append((sample, keep))
         if not rows_a:
             break
         a, b, w = np.concatenate(rows_a), np.concatenate(rows_b), np.concatenate(weights)
@@ -399,13 +399,18 @@ def refine_sampled(samples, matrix, *, border, tukey_c=1.0, max_iter=10, tol=1e-
         if used < 3:
             break
         update, d_omega, shift = irc.rigid_update(a, b, w, centre)
-        last = (a, b, w, np.concatenate(tiles), matrix, centre)
+        last = (a, b, w, kept, matrix, centre)
         matrix = matrix @ update
         if abs(d_omega) < tol and shift < 1000 * tol:
             break
     found = {"matrix": matrix, "iterations": iterations, "pixels": used}
-    if spread:
-        found["spread"] = irc.rigid_spread(*last) if used >= 3 else None
+    if spread:  # the tiles of the last step's rows, only when asked (the finest level)
+        found["spread"] = None
+        if used >= 3:
+            a, b, w, kept, start, centre = last
+            tiles = np.concatenate([irc.spread_tiles(sample.x[keep], sample.y[keep])
+                                    for sample, keep in kept])
+            found["spread"] = irc.rigid_spread(a, b, w, tiles, start, centre)
     return found
 
 

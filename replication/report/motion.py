@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import math
 
+from replication.experiments.motion import SPREAD_OF_SIDE, SPREAD_PX
+from replication.motion.irc import SPREAD_TILE
 from replication.report.build import Section, SummaryRow, fmt
 
 # The paper's reported numbers (2.2), quoted, not measured.
@@ -250,14 +252,18 @@ def _spread_lines(coverage):
             f"{_pct(under['warned'])} of the {under['n']} errors of at most 1 px.")
     if not lines:
         return []
+    # a Gaussian error within 2 spreads (hypot of the x and y spreads): all of it along
+    # one axis, P(|z| <= 2); equal on both, chi-square with 2 degrees, P(r^2 <= 8 sigma^2)
+    one_axis, equal = math.erf(2 / math.sqrt(2)), 1 - math.exp(-4)
     return ["", "Every refined answer carries `spread` (`xi_sd`, `eta_sd`, `omega_sd`): a "
                 "block jackknife of the refinement's last step, leaving out one "
-                "16 x 16-pixel tile at a time (neighbouring pixels share their noise "
-                "through the smoothing). It measures the noise of the estimate, not its "
-                "bias; a spread above 1 px (and 0.2 % of the frame's larger side) is warned "
-                "by `motion_single`. For a Gaussian error, 2 spreads (the x and y spreads "
-                "combined) would cover between 95 % (one much larger than the other) and "
-                "98 % (equal) of the errors:", "", *lines]
+                f"{SPREAD_TILE} x {SPREAD_TILE}-pixel tile at a time (neighbouring pixels "
+                "share their noise through the smoothing). It measures the noise of the "
+                f"estimate, not its bias; a spread above {fmt(SPREAD_PX)} px (and "
+                f"{fmt(100 * SPREAD_OF_SIDE)} % of the frame's larger side) is warned by "
+                "`motion_single`. For a Gaussian error, 2 spreads (the x and y spreads "
+                f"combined) would cover between {_pct(one_axis)} (one much larger than the "
+                f"other) and {_pct(equal)} (equal) of the errors:", "", *lines]
 
 
 def accuracy_section(result):

@@ -23,6 +23,7 @@ from replication.experiments.motion import (
     check_motion,
 )
 from replication.motion import baselines, irc, pyramid, single
+from replication.motion.frame_checks import frame_warnings
 from replication.motion.derivatives import sequence_derivatives
 from replication.progress import bar, progress
 
@@ -241,7 +242,8 @@ def single_rotation(config, out):
         "irc_refined": refined,
         # the pyramid's grid is its top level's, in input pixels (cell x factor)
         "warnings": answer_warnings(paper, refined, settings, found["grid"],
-                                    sequence.frames.shape[1:]),
+                                    sequence.frames.shape[1:])
+        + frame_warnings(sequence.frames, sigma=settings["sigma"]),
         "seconds": found["seconds"],
         "pixels_used": int(len(found["pixels"])),
         "region_pixels": int(np.count_nonzero(found["region"])),

@@ -1,10 +1,15 @@
 """``replicate-gather``: gather the ``result.json`` files of a sweep into one tidy CSV and plots.
 
 One row per run: the run folder, the experiment, the seed, the sweep's overrides (from the
-folder name that Hydra's ``override_dirname`` gives) and every numeric leaf of the result
-outside ``config`` and ``versions``, flattened with dots (``metrics.spring_updates...``),
-with the run's ``provenance`` (``provenance.config_sha256``, ``provenance.code_sha256``,
-``provenance.inputs_sha256.PATH``), so that a committed CSV can be checked for staleness.
+result's ``overrides`` list, the job's overrides as Hydra passed them; results without one
+give them from the folder name that Hydra's ``override_dirname`` gives) and every numeric
+leaf of the result outside ``config``, ``versions`` and ``overrides``, flattened with dots
+(``metrics.spring_updates...``), with the run's ``provenance``
+(``provenance.config_sha256``, ``provenance.code_sha256``,
+``provenance.inputs_sha256.PATH``; one ``provenance.inputs_sha256`` column of
+``PATH:SHA256;...`` when the runs read different files), so that a committed CSV can be
+checked for staleness. Result folders below a hidden folder (a run's ``.NAME.partial-*``
+staging folder) are not runs.
 
 Plots: one PNG per metric in the sweep folder, the metric against one swept override (the
 x axis, numeric when its values are numbers), one line per combination of the other
@@ -21,13 +26,15 @@ import math
 import os
 import re
 import sys
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
-SKIP = {"config", "versions"}
+SKIP = {"config", "versions", "overrides"}
 PREFIX = "override."
 SEED = PREFIX + "seed"
+INPUTS = "provenance.inputs_sha256"
 
 
 class SweepError(Exception):
@@ -55,28 +62,156 @@ def flatten(value, prefix=""):
     return flat
 
 
+@lru_cache(maxsize=1)
+def _parser():
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    return OverridesParser.create()
+
+
+def parse_override(text):
+    """``(key, key_or_group, value)`` of one override string, as Hydra reads it.
+
+    ``key`` keeps the ``+``, ``++`` or ``~`` prefix (as the run-folder name shows it);
+    ``value`` is a quoted or plain string without its quotes and escapes, otherwise the
+    text after ``=`` as Hydra writes it (numbers, ``null``, lists: ``[150,200]``), ``""``
+    for a deletion without a value. A string Hydra cannot parse is split at its first ``=``.
+
+    Parameters
+    ----------
+    text : str
+        ``key=value``, e.g. ``+cost.frames=[150,200]`` or ``data.path='/a b/c,1.npz'``.
+    """
+    from hydra.errors import HydraException
+
+    raw_key, _, raw_value = text.partition("=")
+    try:
+        override = _parser().parse_override(text)
+    except HydraException:
+        return raw_key.strip(), raw_key.strip().lstrip("+~"), raw_value.strip()
+    value = override.value()
+    return (override.get_key_element(), override.key_or_group,
+            value if isinstance(value, str) else raw_value.strip())
+
+
+def split_outside_brackets(text, sep=","):
+    """``text`` split at each ``sep`` that is not inside brackets or quotes nor escaped
+    (``\\,``, as Hydra writes a comma in a plain string); at every ``sep`` when the
+    brackets or quotes do not pair up.
+
+    Parameters
+    ----------
+    text : str
+    sep : str
+        One character.
+    """
+    items, depth, quote, start = [], 0, None, 0
+    for i, char in enumerate(text):
+        if quote:
+            if char == quote and text[i - 1] != "\\":
+                quote = None
+        elif char in "'\"":
+            quote = char
+        elif char in "[{(":
+            depth += 1
+        elif char in "]})":
+            depth -= 1
+            if depth < 0:
+                return text.split(sep)
+        elif char == sep and depth == 0 and text[i - 1:i] != "\\":
+            items.append(text[start:i])
+            start = i + 1
+    if quote or depth:
+        return text.split(sep)
+    return items + [text[start:]]
+
+
 def overrides_of(run_dir):
-    """``key=value`` pairs from a Hydra ``override_dirname`` folder name.
+    """``{override.KEY: value}`` from a Hydra ``override_dirname`` folder name.
 
     ``run_dir`` is relative to the sweep folder. The suite writes a ``/`` in a value as
     ``%2F`` (and ``%`` as ``%25``: ``replication.cli.folder_name``), decoded here; sweeps
-    made before that nested the folder at a ``/``, so the whole path is read.
+    made before that nested the folder at a ``/``, so the whole path is read. Items are
+    split at commas outside brackets and quotes (``+cost.frames=[150,200],seed=0``); values
+    as :func:`parse_override` gives them. A value holding a comma outside brackets and
+    quotes cannot be told from two items: :func:`run_overrides` reads the result's own
+    list when it has one.
+
+    Parameters
+    ----------
+    run_dir : str or Path
     """
     pairs = {}
-    for part in Path(run_dir).as_posix().split(","):
-        key, sep, value = part.partition("=")
-        if sep:
-            pairs[f"{PREFIX}{key}"] = value.replace("%2F", "/").replace("%25", "%")
+    for item in split_outside_brackets(Path(run_dir).as_posix()):
+        item = item.replace("%2F", "/").replace("%25", "%")
+        if "=" in item or item.startswith("~"):
+            key, _, value = parse_override(item)
+            pairs[f"{PREFIX}{key}"] = value
     return pairs
+
+
+def run_overrides(run_dir, result, exclude_keys=()):
+    """``{override.KEY: value}`` of one run: from the result's ``overrides`` (the job's
+    overrides as Hydra passed them, after the sweep's expansion) without the keys Hydra
+    leaves out of folder names, or else from the folder name (:func:`overrides_of`).
+
+    Parameters
+    ----------
+    run_dir : str or Path
+        The run folder, relative to the sweep folder.
+    result : dict
+        The run's ``result.json``.
+    exclude_keys : collection of str
+        ``hydra.job.config.override_dirname.exclude_keys`` (:func:`excluded_keys`).
+    """
+    task = result.get("overrides")
+    if not (isinstance(task, list) and all(isinstance(item, str) for item in task)):
+        return overrides_of(run_dir)
+    pairs = {}
+    for item in task:
+        key, key_or_group, value = parse_override(item)
+        if key_or_group not in exclude_keys:
+            pairs[f"{PREFIX}{key}"] = value
+    return pairs
+
+
+def excluded_keys(sweep_dir):
+    """The keys Hydra leaves out of the run-folder names: those of the sweep's
+    ``multirun.yaml``, else of ``configs/config.yaml``.
+
+    Parameters
+    ----------
+    sweep_dir : str or Path
+    """
+    from omegaconf import OmegaConf
+
+    from replication.cli import CONFIG_DIR
+
+    for path in (Path(sweep_dir) / "multirun.yaml", Path(CONFIG_DIR) / "config.yaml"):
+        try:
+            keys = OmegaConf.select(OmegaConf.load(path),
+                                    "hydra.job.config.override_dirname.exclude_keys")
+        except Exception:  # noqa: BLE001  (no such file, not YAML: try the next)
+            continue
+        if keys is not None:
+            return {str(key) for key in keys}
+    return set()
 
 
 def load_results(sweep_dir):
     """``(run folder relative to sweep_dir, result dict)`` for every ``result.json`` below
-    ``sweep_dir``, sorted by folder."""
+    ``sweep_dir``, sorted by folder; none below a hidden folder (a run's staging folder
+    ``.NAME.partial-*``, left by a run killed while writing its result, ``.submitit``).
+
+    Parameters
+    ----------
+    sweep_dir : str or Path
+    """
     from replication.results import read_result
 
-    return [(path.parent.relative_to(sweep_dir), read_result(path))
-            for path in sorted(Path(sweep_dir).rglob("result.json"))]
+    paths = sorted(Path(sweep_dir).rglob("result.json"))
+    return [(path.parent.relative_to(sweep_dir), read_result(path)) for path in paths
+            if not any(part.startswith(".") for part in path.relative_to(sweep_dir).parts)]
 
 
 def check_one_experiment(results):
@@ -137,13 +272,12 @@ def sweep_warnings(sweep_dir, runs):
     runs : list of str or Path
         The run folders found, relative to ``sweep_dir``.
     """
-    from replication.cli import folder_name
-
     expected = expected_runs(sweep_dir)
     if expected is None:
         return []
-    # a sweep made before '/' was written %2F nested its folders: the same names
-    found = {folder_name(Path(run).as_posix()) for run in runs}
+    # the run folders' names are written already (a '/' in a value as %2F); a sweep made
+    # before that nested its folders at each '/': the same names
+    found = {"%2F".join(Path(run).parts) for run in runs}
     lines = []
     missing = sorted(expected - found)
     if missing:
@@ -171,12 +305,51 @@ def gather(sweep_dir, results=None):
     results : list, optional
         ``(run folder, result)`` pairs already loaded.
     """
+    exclude = excluded_keys(sweep_dir)
     rows = []
     for run, result in load_results(sweep_dir) if results is None else results:
-        row = {"run": str(run), **overrides_of(run)}
+        row = {"run": str(run), **run_overrides(run, result, exclude)}
         row.update(flatten({k: v for k, v in result.items() if k not in SKIP}))
         rows.append(row)
+    return one_inputs_column(rows)
+
+
+def one_inputs_column(rows):
+    """``rows`` with their ``provenance.inputs_sha256.PATH`` columns as one column
+    ``provenance.inputs_sha256`` (``PATH:SHA256`` of each file, sorted, joined by ``;``)
+    when the runs do not all read the same files (a sweep over ``data.path``: one mostly
+    empty column per file otherwise); unchanged when they do. :func:`inputs_of` reads
+    both forms back.
+
+    Parameters
+    ----------
+    rows : list of dict
+        Rows of :func:`gather`, changed in place.
+    """
+    head = INPUTS + "."
+    if len({frozenset(key for key in row if key.startswith(head)) for row in rows}) <= 1:
+        return rows
+    for row in rows:
+        pairs = sorted((key[len(head):], row.pop(key))
+                       for key in [key for key in row if key.startswith(head)])
+        row[INPUTS] = ";".join(f"{path}:{sha}" for path, sha in pairs)
     return rows
+
+
+def inputs_of(line):
+    """``{path: sha256}`` of the input files of a gathered line, from either form of
+    :func:`one_inputs_column`.
+
+    Parameters
+    ----------
+    line : dict
+        A row of :func:`gather` or of :func:`read_gathered`.
+    """
+    head = INPUTS + "."
+    pairs = {key[len(head):]: value for key, value in line.items()
+             if key.startswith(head) and value not in (None, "")}
+    pairs.update(re.findall(r"(.+?):([0-9a-f]{64})(?:;|$)", line.get(INPUTS) or ""))
+    return pairs
 
 
 def cell_value(text):
@@ -411,6 +584,12 @@ def _main(argv=None):
               "with one result.json per run below it)", file=sys.stderr)
         return 2
     output = Path(args.output) if args.output else sweep_dir / "results.csv"
+    if output.name == "result.json":
+        what = ("a run's result (not overwritten)" if output.exists() else
+                "named as a run's result (a later gather would read it as one)")
+        print(f"error: --output {output}: {what}; expected a CSV file path (e.g. "
+              "--output results/my_sweep.csv)", file=sys.stderr)
+        return 2
     if output.is_dir():
         print(f"error: --output {output}: is a folder; expected a CSV file path "
               "(e.g. --output results/my_sweep.csv)", file=sys.stderr)

@@ -11,7 +11,16 @@ from pathlib import Path
 
 import pytest
 
-from replication.sweep import gather, median_by_x, overrides_of, series
+from replication.sweep import (
+    excluded_keys,
+    gather,
+    inputs_of,
+    median_by_x,
+    overrides_of,
+    run_overrides,
+    series,
+    sweep_warnings,
+)
 from replication.sweep import main as gather_main
 from tests.test_cli import ROOT, run_cli
 
@@ -195,3 +204,134 @@ def test_a_path_value_gives_one_run_folder_read_back_by_the_gatherer():
     assert "/" not in name
     assert overrides_of(name) == {"override.data.path": "mine/data/k4%.npz",
                                   "override.seed": "0"}
+
+
+def write_result(folder, **result):
+    """A hand-written ``result.json`` in ``folder`` (made with its parents)."""
+    folder.mkdir(parents=True)
+    (folder / "result.json").write_text(json.dumps({"experiment": "fake", **result}))
+
+
+def test_overrides_of_splits_outside_brackets_and_quotes_and_unquotes():
+    assert overrides_of("+cost.frames=[150,200],seed=0") == {
+        "override.+cost.frames": "[150,200]", "override.seed": "0"}
+    assert overrides_of("data.path='%2Fa b%2Fc,1.npz',name='hello world',seed=0") == {
+        "override.data.path": "/a b/c,1.npz", "override.name": "hello world",
+        "override.seed": "0"}
+    assert overrides_of("name=b\\,c,seed=0") == {"override.name": "b,c", "override.seed": "0"}
+    # brackets that do not pair up: split at every comma, as before
+    assert overrides_of("a=[1,b=2") == {"override.a": "[1", "override.b": "2"}
+
+
+def hydra_jobs(arguments, exclude_keys):
+    """``[(folder name, job overrides)]`` of a sweep as Hydra's basic sweeper and the
+    suite's ``hydra.sweep.subdir`` make them (the overrides a result's ``overrides`` holds)."""
+    from hydra._internal.config_loader_impl import get_overrides_dirname
+    from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    from replication.cli import folder_name
+
+    parser = OverridesParser.create()
+    [batch] = BasicSweeper.split_arguments(parser.parse_overrides(arguments), None)
+    return [(folder_name(get_overrides_dirname(parser.parse_overrides(job), exclude_keys,
+                                               ",", "=")), job) for job in batch]
+
+
+def test_a_results_overrides_list_keeps_values_with_commas_apart(tmp_path):
+    exclude = excluded_keys(tmp_path)  # no multirun.yaml: configs/config.yaml's
+    assert {"experiment", "out", "limits.max_seconds"} <= exclude
+    jobs = hydra_jobs(["experiment=fake", "+cost.frames=[150,200],[150,300]",
+                       "data.path='/a b/c,1.npz'", "numerics.damping=null,1.0e-05",
+                       "init.rest_spread=0.0", "limits.max_seconds=60"], list(exclude))
+    assert len(jobs) == 4
+    for name, job in jobs:
+        write_result(tmp_path / name, overrides=job, best={"cost": 1.0})
+    rows = gather(tmp_path)
+    assert sorted(row["override.+cost.frames"] for row in rows) == [
+        "[150,200]", "[150,200]", "[150,300]", "[150,300]"]
+    assert {row["override.data.path"] for row in rows} == {"/a b/c,1.npz"}
+    assert sorted(row["override.numerics.damping"] for row in rows) == [
+        "1e-05", "1e-05", "null", "null"]   # as Hydra writes the swept value
+    # the excluded keys are left out, as from the folder names; no overrides.N columns
+    columns = {key for row in rows for key in row}
+    assert {key for key in columns if key.startswith("override")} == {
+        "override.+cost.frames", "override.data.path", "override.init.rest_spread",
+        "override.numerics.damping"}
+    # a result without the list (an older one) gives the same from its folder name
+    for name, job in jobs:
+        assert overrides_of(name) == run_overrides(name, {"overrides": job}, exclude)
+
+
+def test_a_result_without_overrides_reads_its_folder_name(tmp_path):
+    write_result(tmp_path / "cost.kind=full,seed=1", seed=1)
+    write_result(tmp_path / "cost.kind=small,seed=0", seed=0,
+                 overrides=["experiment=fake", "cost.kind=small", "seed=0"])
+    rows = gather(tmp_path)
+    assert [(row["override.cost.kind"], row["override.seed"]) for row in rows] == [
+        ("full", "1"), ("small", "0")]
+
+
+def test_sweep_warnings_read_encoded_folder_names_as_they_are(tmp_path):
+    """A swept value with '/' or '%': the run folders are %2F / %25 already."""
+    (tmp_path / "multirun.yaml").write_text("""hydra:
+  sweep: {dir: x, subdir: '${folder_name:${hydra.job.override_dirname}}'}
+  sweeper: {_target_: hydra._internal.core_plugins.basic_sweeper.BasicSweeper}
+  job: {config: {override_dirname: {kv_sep: '=', item_sep: ',', exclude_keys: [experiment]}}}
+  overrides: {task: ['experiment=fake', 'data.path=a/b.npz,a/c%.npz', 'seed=0']}
+""")
+    names = ["data.path=a%2Fb.npz,seed=0", "data.path=a%2Fc%25.npz,seed=0"]
+    for name in names:
+        write_result(tmp_path / name, seed=0)
+    assert sweep_warnings(tmp_path, names) == []
+    assert sweep_warnings(tmp_path, [Path(name) for name in names]) == []
+    assert [row["override.data.path"] for row in gather(tmp_path)] == ["a/b.npz", "a/c%.npz"]
+    # a sweep made before '/' was written %2F nested its folders: the same names
+    assert sweep_warnings(tmp_path, [Path("data.path=a") / "b.npz,seed=0", names[1]]) == []
+    [missing] = sweep_warnings(tmp_path, names[:1])
+    assert "1 of the 2 jobs" in missing and names[1] in missing
+
+
+def test_gather_skips_result_files_below_hidden_folders(tmp_path):
+    sweep = fake_sweep(tmp_path / "sweep")
+    staged = sweep / ".result.json.partial-x1" / "out"   # a run killed during its commit
+    write_result(staged, seed=0, best={"cost": 0.0})
+    write_result(sweep / ".submitit" / "1", seed=0)
+    rows = gather(sweep)
+    assert len(rows) == 18 and not any(row["run"].startswith(".") for row in rows)
+
+
+def test_gather_refuses_to_write_its_csv_onto_a_result_json(tmp_path, capsys):
+    sweep = fake_sweep(tmp_path / "sweep")
+    run = sweep / "budget=100,method=ea,seed=0" / "result.json"
+    before = run.read_text()
+    assert gather_main([str(sweep), "--output", str(run), "--no-plots"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: --output {run}: a run's result") and err.count("\n") == 1
+    assert run.read_text() == before
+    new = sweep / "result.json"   # would be gathered as a run next time
+    assert gather_main([str(sweep), "--output", str(new), "--no-plots"]) == 2
+    assert not new.exists() and "expected a CSV file path" in capsys.readouterr().err
+
+
+def test_inputs_of_runs_reading_different_files_share_one_column(tmp_path):
+    sha = {"d/a.npz": "a" * 64, "d/b;c.npz": "b" * 64, "ref.npz": "c" * 64}
+    write_result(tmp_path / "data.path=d%2Fa.npz", provenance={
+        "code_sha256": "x", "inputs_sha256": {"d/a.npz": sha["d/a.npz"]}})
+    write_result(tmp_path / "data.path=d%2Fb;c.npz", provenance={
+        "code_sha256": "x", "inputs_sha256": {"d/b;c.npz": sha["d/b;c.npz"],
+                                              "ref.npz": sha["ref.npz"]}})
+    rows = gather(tmp_path)
+    assert [row["provenance.inputs_sha256"] for row in rows] == [
+        f"d/a.npz:{sha['d/a.npz']}", f"d/b;c.npz:{sha['d/b;c.npz']};ref.npz:{sha['ref.npz']}"]
+    assert not [key for row in rows for key in row if key.startswith("provenance.inputs_")
+                and key != "provenance.inputs_sha256"]
+    assert inputs_of(rows[1]) == {"d/b;c.npz": sha["d/b;c.npz"], "ref.npz": sha["ref.npz"]}
+    # runs reading the same files keep one column per file (the committed CSVs' form)
+    same = tmp_path / "same"
+    for seed in (0, 1):
+        write_result(same / f"seed={seed}", provenance={"inputs_sha256": {"ref.npz": sha[
+            "ref.npz"]}})
+    rows = gather(same)
+    assert [row["provenance.inputs_sha256.ref.npz"] for row in rows] == [sha["ref.npz"]] * 2
+    assert inputs_of(rows[0]) == {"ref.npz": sha["ref.npz"]}

@@ -30,8 +30,9 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
-from replication.errors import InputError
-from replication.guard import LIMITS, check_config, check_out, check_writable, committed_folder
+from replication.errors import InputError, check
+from replication.guard import (LIMITS, OUTPUT_KEYS, check_config, check_out, check_writable,
+                               committed_folder)
 from replication.progress import mode_for
 from replication.provenance import run_provenance
 from replication.results import (package_versions, read_result_or_none, to_jsonable,
@@ -39,8 +40,6 @@ from replication.results import (package_versions, read_result_or_none, to_jsona
 
 CONFIG_DIR = str(Path(__file__).resolve().parent.parent / "configs")
 
-# config keys naming output folders besides ``out``: staged like ``out``
-OUTPUT_KEYS = ("figure_dir", "figures_dir", "data_dir")
 # config keys naming output files in a folder of their own (``figure: figures/x.png``; a
 # bare name is a file inside ``figure_dir``): staged in a folder of their own
 OUTPUT_FILE_KEYS = ("figure", "manifest")
@@ -262,7 +261,7 @@ def report_warnings(result, strict):
     return warnings
 
 
-def run_experiment(config, out, defaults=None):
+def run_experiment(config, out, defaults=None, overrides=None):
     """Run the experiment described by the plain-dict ``config``; return the result dict.
 
     ``defaults``: the experiment's own config (without overrides), against which the
@@ -276,6 +275,9 @@ def run_experiment(config, out, defaults=None):
         Where ``result.json`` goes (written atomically, after every other file).
     defaults : dict, optional
         The experiment's own config, without overrides.
+    overrides : list of str, optional
+        The command line's overrides of this run (a sweep's job: its own), kept in the
+        result as ``overrides`` (``replicate-gather`` reads a job's settings from them).
     """
     if not config.get("runner"):
         raise InputError(
@@ -313,6 +315,8 @@ def run_experiment(config, out, defaults=None):
             "wall_seconds": wall,
             "provenance": provenance,
         }
+        if overrides is not None:
+            payload["overrides"] = [str(line) for line in overrides]
         payload.update(result)
         payload["warnings"] = warnings
         write_json_atomic(staging.root / "out" / "result.json", payload)
@@ -338,9 +342,13 @@ def _os_message(error):
     return f"{where}{error.strerror or error}"
 
 
-def _interrupted():
-    """Leave at once with status 130 (no interpreter teardown with numba threads busy)."""
-    print("error: interrupted; nothing written", file=sys.stderr, flush=True)
+def _interrupted(sweep=False):
+    """Leave at once with status 130 (no interpreter teardown with numba threads busy).
+    ``sweep``: the jobs that finished before keep their results."""
+    print("error: interrupted; " + ("the jobs stopped wrote nothing, those that finished "
+                                    "kept their results (resume=true runs the rest)"
+                                    if sweep else "nothing written"),
+          file=sys.stderr, flush=True)
     sys.stdout.flush()
     os._exit(130)
 
@@ -366,6 +374,59 @@ def _hydra_main(cfg: DictConfig):
         raise
 
 
+REFUSED_FOLDER = ".refused"   # in a sweep folder: one file per job a launcher's worker refused
+
+
+def _in_worker():
+    """Whether this job runs in a sweep under a launcher other than Hydra's basic one
+    (joblib, submitit, Dask: each job in a process or machine of its own)."""
+    from hydra.types import RunMode
+
+    try:
+        hydra_config = HydraConfig.get()
+    except ValueError:
+        return False
+    return (hydra_config.mode == RunMode.MULTIRUN
+            and not str(hydra_config.launcher._target_).endswith("BasicLauncher"))
+
+
+def _refuse(message):
+    """A refused run: its ``error:`` line and status 2. In a launcher's worker the job
+    ends instead (its empty folder removed) with the message in the sweep folder's
+    :data:`REFUSED_FOLDER`, which the submitting ``replicate`` reads when every job is
+    back (:func:`_refused_jobs`): a job that exits would stop the jobs running beside it
+    (joblib) or end the sweep in a traceback (submitit)."""
+    if not _in_worker():
+        _error(message)
+    print(f"error: {message}", file=sys.stderr, flush=True)
+    hydra_config = HydraConfig.get()
+    folder = Path(hydra_config.sweep.dir) / REFUSED_FOLDER
+    folder.mkdir(parents=True, exist_ok=True)
+    overrides = ",".join(str(o) for o in hydra_config.overrides.task)
+    write_json_atomic(folder / f"{hydra_config.job.num}.json",
+                      {"job": hydra_config.job.num, "overrides": overrides,
+                       "message": str(message)})
+    _drop_empty_job_folder()
+
+
+def _refused_jobs(sweep_dir, since):
+    """The refusals (:func:`_refuse`) written into ``sweep_dir`` at or after ``since``
+    (``time.time()``), which are then removed; ``[]`` when there are none."""
+    import json
+
+    folder = Path(sweep_dir) / REFUSED_FOLDER
+    refused = []
+    for path in sorted(folder.glob("*.json")) if folder.is_dir() else []:
+        try:
+            if path.stat().st_mtime >= since - 1.0:
+                refused.append(json.loads(path.read_text()))
+            path.unlink()
+        except (OSError, ValueError):
+            continue
+    _remove_empty([folder])
+    return sorted(refused, key=lambda item: item.get("job", 0))
+
+
 def _run_task(cfg):
     try:
         config = OmegaConf.to_container(cfg, resolve=True, throw_on_missing=True)
@@ -373,19 +434,20 @@ def _run_task(cfg):
         if out is None:
             out = HydraConfig.get().runtime.output_dir
         config["out"] = out
-        run_experiment(config, out)
+        run_experiment(config, out, overrides=list(HydraConfig.get().overrides.task))
     except InputError as error:
-        _error(error)
+        _refuse(error)
     except FileNotFoundError as error:
-        _error(f"{error.filename}: file not found")
+        _refuse(f"{error.filename}: file not found")
     except OSError as error:
-        _error(_os_message(error))
+        _refuse(_os_message(error))
     except SystemError as error:  # Ctrl-C or the time limit inside numba's dispatcher
         cause = error.__cause__ or error.__context__
         if isinstance(cause, KeyboardInterrupt):
             raise KeyboardInterrupt from None
         if isinstance(cause, InputError):
-            _error(cause)
+            _refuse(cause)
+            return
         raise
 
 
@@ -428,6 +490,11 @@ def _hydra_message(error, overrides=()):
             return (f"Could not override '{key}': no such key; did you mean "
                     f"{' or '.join(close)}? (+{key}=VALUE would add it as a new key, which "
                     "the run ignores unless it reads it)")
+    if "LexerNoViableAltException" in text:
+        line = text.split("LexerNoViableAltException:", 1)[1].strip().splitlines()[0].strip()
+        key, _, value = line.partition("=")
+        return (f"{line}: Hydra cannot read this value unquoted (characters such as accented "
+                f"letters need quotes); quote it: {key}='{value}'")
     if "ConfigLoader is not set" in text:
         return ("glob(...) chooses among config-group options in a sweep, not files: list "
                 "the files instead (-m data.path=A.npz,B.npz)")
@@ -524,8 +591,9 @@ def precheck(overrides):
         raise InputError("no experiment chosen: pass experiment=NAME, one of "
                          + ", ".join(available_experiments()))
     out = config.get("out")
-    if out is None:
-        out = f"results/{config['name']}"
+    if out is None:  # Hydra's run folder (configs/config.yaml: out, else results/NAME)
+        out = next((line.split("=", 1)[1] for line in overrides
+                    if line.split("=", 1)[0] == "hydra.run.dir"), f"results/{config['name']}")
     check_config(config, defaults)
     _note_unread(overrides, defaults, config["name"])
     check_out(out, force=config.get("force", False))
@@ -533,14 +601,65 @@ def precheck(overrides):
     return out
 
 
+NAME_BYTES = 255   # the longest file or folder name most file systems take
+
+
+def _fixed_output(override):
+    """Whether ``override`` sets an output folder or file (``out``, :data:`OUTPUT_KEYS`,
+    :data:`OUTPUT_FILE_KEYS`) to one value for every job of a sweep: not swept, not made
+    per job with ``${...}``, not null or empty."""
+    key = override.get_key_element().lstrip("+~")
+    if key not in ("out",) + OUTPUT_KEYS + OUTPUT_FILE_KEYS or override.is_sweep_override():
+        return False
+    value = override.input_line.split("=", 1)[1].strip()
+    return "${" not in value and value not in ("", "null")
+
+
+def _check_sweep_settings(hydra_config, launcher, longest):
+    """Refusals of a sweep's ``hydra`` settings before any job: an empty
+    ``hydra.sweep.dir`` (the job folders would go into the working directory), joblib's
+    ``n_jobs=0`` (joblib's traceback), and a job folder name longer than the file system
+    takes (``longest``: the job with each swept key at its longest value)."""
+    from hydra._internal.config_loader_impl import get_overrides_dirname
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    check(str(hydra_config.sweep.dir).strip() != "",
+          "hydra.sweep.dir=: empty; expected a folder (the default is multirun/NAME)")
+    target = str(OmegaConf.select(hydra_config, "launcher._target_", default=""))
+    n_jobs = OmegaConf.select(hydra_config, "launcher.n_jobs", default=None)
+    check(not (target.endswith("JoblibLauncher") and n_jobs == 0),
+          "hydra.launcher.n_jobs=0: expected a number of processes >= 1 (or -1: one per CPU)")
+    if any(line.split("=", 1)[0] == "hydra.sweep.subdir" for line in launcher):
+        return
+    dirname = hydra_config.job.config.override_dirname
+    name = folder_name(get_overrides_dirname(OverridesParser.create().parse_overrides(longest),
+                                             list(dirname.exclude_keys), dirname.item_sep,
+                                             dirname.kv_sep))
+    size = len(name.encode())
+    check(size <= NAME_BYTES,
+          f"a job folder of this sweep would be named with {size} bytes (its overrides, "
+          f"{name[:60]}...), more than file systems take ({NAME_BYTES}); shorten the values "
+          "(a data folder, not long file paths) or name job folders by number: "
+          "hydra.sweep.subdir='${hydra.job.num}' (replicate-gather still reads each job's "
+          "overrides from its result.json)")
+
+
 def compose_first_job(args):
     """Compose the jobs of a sweep that differ from the first in one swept value (each
     value of each swept key once) and check them (:func:`check_config`), so that Hydra's
     refusals and bad values come as one :class:`InputError` line before any job runs or
     Hydra writes anything: the first job with the ``hydra`` overrides (a launcher or one
-    of its keys misspelt), in a sweep over experiments the keys set for all of them
-    against the root config (Hydra applies them to it first), and a fixed ``out`` (every
-    job would write there)."""
+    of its keys misspelt, :func:`_check_sweep_settings`), in a sweep over experiments the
+    keys set for all of them against the root config (Hydra applies them to it first), and
+    a fixed ``out``, ``figure_dir``, ... (every job would write there).
+
+    Returns the sweep folder (``hydra.sweep.dir`` as composed here).
+
+    Parameters
+    ----------
+    args : list of str
+        The sweep's overrides, without ``-m``.
+    """
     from hydra import compose, initialize_config_dir
     from hydra.core.global_hydra import GlobalHydra
     from hydra.core.override_parser.overrides_parser import OverridesParser
@@ -549,37 +668,47 @@ def compose_first_job(args):
 
     GlobalHydra.instance().clear()
     try:
-        overrides, swept, launcher, plain, fixed = [], [], [], [], None
+        overrides, swept, launcher, plain, fixed, longest = [], [], [], [], [], []
         for override in OverridesParser.create().parse_overrides(list(args)):
             if override.key_or_group.startswith("hydra"):
                 launcher.append(override.input_line)
                 continue
             key = override.get_key_element()
-            if key == "out" and not override.is_sweep_override():
-                fixed = override.input_line
+            if _fixed_output(override):
+                fixed.append(override.input_line)
             if override.is_sweep_override():
                 values = list(override.sweep_string_iterator())
                 overrides.append(f"{key}={values[0]}" if values else override.input_line)
                 swept.extend((len(overrides) - 1, f"{key}={value}") for value in values[1:])
-            elif not (override.is_add() or override.is_force_add()
-                      or (Path(CONFIG_DIR) / override.key_or_group).is_dir()):
-                overrides.append(override.input_line)
-                plain.append(override.key_or_group)
+                longest.append(f"{key}={max(values, key=lambda v: len(folder_name(v)))}"
+                               if values else override.input_line)
             else:
                 overrides.append(override.input_line)
+                longest.append(override.input_line)
+                if not (override.is_add() or override.is_force_add()
+                        or (Path(CONFIG_DIR) / override.key_or_group).is_dir()):
+                    plain.append(override.key_or_group)
         jobs = [overrides] + [overrides[:i] + [line] + overrides[i + 1:] for i, line in swept]
-        # one folder for every job (not null, not made per job with ${...}): only the last
-        # job's result would stay
-        if (len(jobs) > 1 and fixed is not None and "${" not in fixed
-                and fixed.split("=", 1)[1].strip() not in ("", "null")):
-            raise InputError(f"{fixed} in a sweep: every job would write that folder and "
-                             "only the last result would stay; leave out unset (each job "
-                             "writes multirun/NAME/OVERRIDES, or hydra.sweep.dir=DIR/"
-                             "OVERRIDES), sweep it (out=A,B) or make it per job "
-                             "(out=DIR/${seed})")
+        # one folder for every job: only the last job's result would stay; shared figure
+        # and data folders (tests and users keep figures out of figures/ that way) only lose
+        # the earlier jobs' figures: noted
+        if len(jobs) > 1:
+            for line in fixed:
+                key = line.split("=", 1)[0].lstrip("+~")
+                if key == "out":
+                    raise InputError(
+                        f"{line} in a sweep: every job would write that folder and only the "
+                        "last result would stay; leave out unset (each job writes "
+                        "multirun/NAME/OVERRIDES, or hydra.sweep.dir=DIR/OVERRIDES), sweep "
+                        "it (out=A,B) or make it per job (out=DIR/${seed})")
+                print(f"note: {line} in a sweep: every job writes there, so only the last "
+                      f"job's files stay (each result.json is kept); {key}=DIR/${{seed}} or "
+                      f"leaving {key} unset keeps them per job", file=sys.stderr)
         with initialize_config_dir(config_dir=CONFIG_DIR, version_base="1.3"):
-            compose(config_name="config", overrides=overrides + launcher,
-                    return_hydra_config=True)
+            hydra_config = compose(config_name="config", overrides=overrides + launcher,
+                                   return_hydra_config=True).hydra
+            _check_sweep_settings(hydra_config, launcher, longest)
+            sweep_dir = str(hydra_config.sweep.dir)
             if any(line.startswith("experiment=") for _, line in swept):
                 _check_shared_keys(plain, compose(config_name="config"))
             defaults = own = None
@@ -599,6 +728,7 @@ def compose_first_job(args):
         raise InputError(_hydra_message(error, list(args))) from None
     finally:
         GlobalHydra.instance().clear()
+    return sweep_dir
 
 
 def _check_shared_keys(keys, root):
@@ -681,14 +811,14 @@ def main():
         raise Interrupted()
 
     previous = signal.signal(signal.SIGTERM, terminate)
-    chain = []
+    chain, sweep_dir, started = [], None, time.time()
     try:
         flags = [arg for arg in args if arg.startswith("-")]
         if flags and set(flags) <= {"-m", "--multirun"}:
             # a sweep: Hydra's refusals (unknown key or experiment) as one line; each job
             # checks its own config
             try:
-                compose_first_job([arg for arg in args if arg not in flags])
+                sweep_dir = compose_first_job([arg for arg in args if arg not in flags])
             except InputError as error:
                 _error(error)
         if not flags:
@@ -706,11 +836,50 @@ def main():
             if done.code not in (0, None):
                 _remove_empty(chain)
             raise
+        if sweep_dir is not None:
+            _report_refused(sweep_dir, started)
     except KeyboardInterrupt:
         _remove_empty(chain)
-        _interrupted()
+        if sweep_dir is not None:
+            _drop_partial_jobs(sweep_dir, started)
+        _interrupted(sweep=sweep_dir is not None)
     finally:
         signal.signal(signal.SIGTERM, previous)
+
+
+def _report_refused(sweep_dir, since):
+    """After a sweep, the jobs a launcher's workers refused (:func:`_refuse`): one
+    ``error:`` line and status 2, as a refused run ends."""
+    refused = _refused_jobs(sweep_dir, since)
+    if refused:
+        first = refused[0]
+        more = f" (and {len(refused) - 1} more job(s), their error: lines above or in the " \
+               "launcher's logs)" if len(refused) > 1 else ""
+        _error(f"{len(refused)} job(s) of the sweep refused (any other job ran and kept its "
+               f"result): job {first['job']} ({first['overrides']}): {first['message']}{more}"
+               "; after fixing, the same sweep with resume=true runs only what is missing")
+
+
+def _drop_partial_jobs(sweep_dir, since):
+    """After Ctrl-C in a sweep, remove the staging folders of the jobs it stopped (a
+    launcher's workers can be killed before their own clean-up runs) and the job folders
+    they leave empty, both made at or after ``since``; finished jobs stay."""
+    root = Path(sweep_dir)
+    if not root.is_dir():
+        return
+    for path in root.glob(".*.partial-*"):
+        try:
+            if path.is_dir() and path.stat().st_mtime >= since - 1.0:
+                shutil.rmtree(path, ignore_errors=True)
+        except OSError:
+            continue
+    for path in root.iterdir():
+        try:
+            if (path.is_dir() and not path.name.startswith(".")
+                    and path.stat().st_mtime >= since - 1.0 and not any(path.iterdir())):
+                path.rmdir()
+        except OSError:
+            continue
 
 
 if __name__ == "__main__":

@@ -22,7 +22,7 @@ import tempfile
 from pathlib import Path
 
 from replication.errors import InputError, check
-from replication.progress import check_mode
+from replication.progress import check_environment, check_mode
 from replication.provenance import PROJECT_ROOT
 
 # defaults of the config's ``limits`` block (configs/config.yaml)
@@ -35,6 +35,8 @@ DEFAULT_LIMITS = {
 LIMITS = dict(DEFAULT_LIMITS)
 
 BOOLEAN_KEYS = ("resume", "strict", "force")
+# config keys naming output folders besides ``out`` (staged like ``out``, replication.cli)
+OUTPUT_KEYS = ("figure_dir", "figures_dir", "data_dir")
 
 
 def set_limits(limits):
@@ -269,6 +271,12 @@ def check_config(config, defaults):
         value = config.get(key, False)
         check(isinstance(value, bool), f"{key}={show(value)}: expected true or false")
     check_mode(config.get("progress"))
+    check_environment()
+    for key in OUTPUT_KEYS:
+        value = config.get(key)
+        check(not (isinstance(value, str) and value.strip() == ""),
+              f"{key}=: empty; expected a folder ({key}=DIR; an empty one would write into "
+              "the working directory)")
     if defaults is not None:
         check_types({k: v for k, v in defaults.items() if k not in ("out", "data")},
                     {k: v for k, v in config.items() if k not in ("out", "data")})

@@ -54,6 +54,21 @@ def check_mode(mode):
     return mode
 
 
+def check_environment(environ=None):
+    """Refuse a :data:`ENVIRONMENT` value that is not one of :data:`MODES` (unset is
+    ``auto``): a misspelt one would otherwise quietly mean ``auto``.
+
+    Parameters
+    ----------
+    environ : mapping, optional
+        The environment (default ``os.environ``).
+    """
+    value = (os.environ if environ is None else environ).get(ENVIRONMENT)
+    check(value is None or value in MODES,
+          f"{ENVIRONMENT}={value!r} in the environment: expected one of {', '.join(MODES)} "
+          "(or unset)")
+
+
 def set_mode(mode):
     """Set how progress shows for the rest of the process (see the module docstring)."""
     _STATE["mode"] = check_mode(mode)

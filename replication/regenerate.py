@@ -32,7 +32,8 @@ from pathlib import Path
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
-from replication.progress import ENVIRONMENT, MODES, bar, mode_for
+from replication.errors import InputError
+from replication.progress import ENVIRONMENT, MODES, bar, check_environment, mode_for
 from replication.provenance import PROJECT_ROOT, inputs_hash, run_provenance
 from replication.report.build import CONFIG_DIR, build_report, experiment_entries
 from replication.results import read_result_or_none
@@ -386,6 +387,11 @@ def _main(argv=None):
     args = parser.parse_args(argv)
     if args.jobs < 1:
         print(f"error: --jobs={args.jobs}: expected at least 1", file=sys.stderr)
+        return 2
+    try:
+        check_environment()
+    except InputError as error:
+        print(f"error: {error}", file=sys.stderr)
         return 2
 
     results = Path(args.results)

@@ -8,6 +8,7 @@ case, which needs a real process.
 
 import errno
 import json
+import shutil
 import os
 import signal
 import subprocess
@@ -524,3 +525,98 @@ def test_replicate_all_refuses_an_empty_or_outside_only(capsys):
     assert "no experiment named" in capsys.readouterr().err
     assert regenerate.main(["--only", "cloth_baselines"]) == 2
     assert "not part of replicate-all (no report block" in capsys.readouterr().err
+
+
+def test_empty_output_folder_is_refused(tmp_path, capsys, monkeypatch):
+    """``figure_dir=`` (empty) would write the figures into the working directory."""
+    monkeypatch.chdir(tmp_path)
+    status, err = replicate(capsys, "experiment=fig08_mesh", "figure_dir=",
+                            f"out={tmp_path / 'out'}")
+    assert_refused(status, err, "figure_dir=: empty", tmp_path)
+
+
+def test_hydra_run_dir_is_the_output_folder_without_out(tmp_path, capsys):
+    run_dir = tmp_path / "run"
+    status, err = replicate(capsys, "experiment=fig08_mesh", f"hydra.run.dir={run_dir}",
+                            "--quiet")
+    assert status == 0, err
+    assert (run_dir / "result.json").is_file()
+
+
+@pytest.mark.parametrize("value", ["bogus", "BAR", " plain"])
+def test_a_misspelt_progress_environment_variable_is_refused(tmp_path, capsys, monkeypatch,
+                                                             value):
+    monkeypatch.setenv("REPLICATION_PROGRESS", value)
+    status, err = replicate(capsys, "experiment=fig08_mesh", f"out={tmp_path / 'out'}")
+    assert_refused(status, err, "REPLICATION_PROGRESS=", tmp_path)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["hydra.sweep.dir="], "hydra.sweep.dir=: empty"),
+    (["hydra/launcher=joblib", "hydra.launcher.n_jobs=0"], "hydra.launcher.n_jobs=0"),
+    (["out=o/x"], "out=o/x in a sweep"),
+])
+def test_sweep_settings_that_cannot_work_are_refused_before_any_job(tmp_path, capsys,
+                                                                    monkeypatch, args,
+                                                                    message):
+    monkeypatch.chdir(tmp_path)
+    status, err = replicate(capsys, "-m", "experiment=fig08_mesh", "zoom=3,4",
+                            f"figure_dir={tmp_path / 'fig'}", *args)
+    assert_refused(status, err, message, tmp_path)
+
+
+def test_a_job_folder_name_too_long_is_refused_before_any_job(tmp_path, capsys, monkeypatch):
+    """Each ``/`` of a swept path is ``%2F`` in the job folder's name, which file systems
+    limit to 255 bytes (``OSError: File name too long`` after the jobs before it ran)."""
+    long = tmp_path / ("a" * 120) / ("b" * 120)
+    long.mkdir(parents=True)
+    shutil.copy(ROOT / "synthetic_data" / "cloth" / "reference_tau0.5.npz", long / "r.npz")
+    work = tmp_path / "work"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    status, err = replicate(capsys, "-m", "experiment=cloth_identify",
+                            f"data.path={long / 'r.npz'},{long / 'r.npz'}x")
+    assert_refused(status, err, "more than file systems take (255)", work)
+
+
+def test_a_shared_figure_folder_in_a_sweep_is_noted(tmp_path, capsys):
+    compose = cli.compose_first_job
+    compose(["experiment=fig08_mesh", "zoom=3,4", f"figure_dir={tmp_path / 'f'}"])
+    assert "note: figure_dir=" in capsys.readouterr().err
+    compose(["experiment=fig08_mesh", "zoom=3", f"figure_dir={tmp_path / 'f'}"])
+    compose(["experiment=fig08_mesh", "zoom=3,4", f"figure_dir={tmp_path}/" + "${zoom}"])
+    assert "note:" not in capsys.readouterr().err
+
+
+def test_refusals_noted_by_workers_are_read_once_and_only_when_new(tmp_path):
+    folder = tmp_path / cli.REFUSED_FOLDER
+    folder.mkdir()
+    (folder / "0.json").write_text(json.dumps({"job": 0, "overrides": "seed=0",
+                                               "message": "old"}))
+    os.utime(folder / "0.json", (1.0, 1.0))
+    (folder / "1.json").write_text(json.dumps({"job": 1, "overrides": "seed=1",
+                                               "message": "new"}))
+    refused = cli._refused_jobs(tmp_path, since=time.time() - 60)
+    assert [item["message"] for item in refused] == ["new"]
+    assert not folder.exists()
+    assert cli._refused_jobs(tmp_path, since=0.0) == []
+
+
+def test_an_interrupted_sweep_loses_only_what_its_stopped_jobs_left(tmp_path):
+    started = time.time()
+    (tmp_path / "seed=0").mkdir()
+    (tmp_path / "seed=0" / "result.json").write_text("{}")
+    (tmp_path / "seed=1").mkdir()
+    (tmp_path / ".seed=1.partial-abc" / "out").mkdir(parents=True)
+    old = tmp_path / "seed=9"
+    old.mkdir()
+    os.utime(old, (started - 3600, started - 3600))
+    cli._drop_partial_jobs(tmp_path, started)
+    assert sorted(os.listdir(tmp_path)) == ["seed=0", "seed=9"]
+
+
+def test_a_value_hydra_cannot_read_unquoted_gets_the_quoted_spelling(tmp_path, capsys,
+                                                                     monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    status, err = replicate(capsys, "experiment=fig08_mesh", f"out={tmp_path}/\u00e9")
+    assert_refused(status, err, f"quote it: out='{tmp_path}/\u00e9'", tmp_path)

@@ -14,6 +14,7 @@ Marked ``distributed`` (``pytest -m "not distributed"`` leaves it out): 40 to 50
 busy cores."""
 
 import csv
+import json
 import os
 import shutil
 import signal
@@ -138,8 +139,8 @@ def test_dask_sweep_on_its_own_local_cluster_gathers_to_the_serial_csv(tmp_path,
 
 def test_dask_sweep_with_a_failing_job_exits_2_and_keeps_the_other_jobs(tmp_path,
                                                                       dask_cluster):
-    """A refused job (README.md is no trajectory) fails the sweep with the job's one error
-    line and status 2, as the serial sweep does; unlike it, the other jobs still run."""
+    """A refused job (README.md is no trajectory) fails the sweep with one error line
+    naming it and status 2, as the serial sweep does; unlike it, the other jobs still run."""
     scheduler_file, _ = dask_cluster
     folder = tmp_path / "sweep"
     done = run_cli("-m", "experiment=cloth_identify", "method=paper_ea", "budget=50",
@@ -147,7 +148,10 @@ def test_dask_sweep_with_a_failing_job_exits_2_and_keeps_the_other_jobs(tmp_path
                    "hydra/launcher=dask", f"hydra.launcher.address={scheduler_file}",
                    f"hydra.sweep.dir={folder}")
     assert done.returncode == 2, done.stderr[-3000:]
-    assert "error: README.md: cannot be read" in done.stderr
+    # the remote worker's own error line stays on its machine; the sweep's names it
+    summary = [line for line in done.stderr.splitlines() if line.startswith("error: ")]
+    assert len(summary) == 1 and "job(s) of the sweep refused" in summary[0]
+    assert "README.md: cannot be read" in summary[0]
     runs = [p.parent.relative_to(folder).as_posix() for p in folder.rglob("result.json")]
     assert runs == ["budget=50,data.path=synthetic_data%2Fcloth%2Freference_tau0.5.npz,"
                     "method=paper_ea"]
@@ -163,8 +167,32 @@ def test_dask_sweep_with_a_failing_job_exits_2_and_keeps_the_other_jobs(tmp_path
 ])
 def test_dask_settings_it_cannot_use_are_one_error_line(tmp_path, setting, message):
     done = run_cli("-m", "experiment=fig08_mesh", "zoom=3,4", "hydra/launcher=dask",
-                   f"hydra.sweep.dir={tmp_path / 'sweep'}", f"figure_dir={tmp_path / 'f'}",
-                   setting)
+                   f"hydra.sweep.dir={tmp_path / 'sweep'}",
+                   f"figure_dir={tmp_path / 'f'}/" + "${zoom}", setting)
     assert done.returncode == 2 and done.stderr.startswith("error: ")
     assert message in done.stderr and "Traceback" not in done.stderr
     assert not list(tmp_path.rglob("result.json"))
+
+
+def test_joblib_sweep_with_a_refused_job_runs_the_others_and_exits_2(tmp_path):
+    """joblib used to stop the jobs running beside a refused one (and leave their staging
+    folders); now every other job runs, and the sweep ends with one error line naming the
+    refused job. Each job's result holds its own overrides (replicate-gather reads them)."""
+    folder = tmp_path / "sweep"
+    done = run_cli("-m", "experiment=cloth_identify", "method=paper_ea", "budget=50",
+                   "seed=0,1", "data.path=README.md,synthetic_data/cloth/reference_tau0.5.npz",
+                   "hydra/launcher=joblib", "hydra.launcher.n_jobs=2",
+                   f"hydra.sweep.dir={folder}")
+    assert done.returncode == 2, done.stderr[-3000:]
+    summary = [line for line in done.stderr.splitlines()
+               if line.startswith("error: ") and "job(s) of the sweep refused" in line]
+    assert len(summary) == 1 and "README.md: cannot be read" in summary[0], done.stderr
+    assert summary[0].startswith("error: 2 job(s)")
+    assert "Traceback" not in done.stderr
+    results = sorted(folder.rglob("result.json"))
+    assert [p.parent.name.split(",")[-1] for p in results] == ["seed=0", "seed=1"]
+    assert all("reference_tau0.5" in p.parent.name for p in results)
+    overrides = json.loads(results[0].read_text())["overrides"]
+    assert "seed=0" in overrides and "method=paper_ea" in overrides
+    assert sorted(p.name for p in folder.iterdir()) == sorted(
+        [p.parent.name for p in results] + ["multirun.yaml"])

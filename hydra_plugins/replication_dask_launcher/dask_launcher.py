@@ -26,6 +26,7 @@ imports every module there at start-up, so ``distributed`` is imported only in
 
 import contextlib
 import io
+import logging
 import os
 import sys
 import threading
@@ -239,6 +240,11 @@ class DaskLauncher(Launcher):
                         f"hydra.launcher.memory_limit={self.memory_limit} allows, or the "
                         "worker was stopped; raise the limit (or null), use fewer workers, "
                         "and resume=true re-runs only the missing jobs")
+        except KeyboardInterrupt:
+            # Ctrl-C: the local cluster's nannies log their workers' shutdown (warnings and
+            # a CancelledError traceback) while it closes; the interruption is the news
+            logging.getLogger("distributed").setLevel(logging.CRITICAL)
+            raise
         finally:
             client.close()
             if cluster is not None:

@@ -146,7 +146,8 @@ class Staging:
         anchor = self.out.parent
         while not anchor.exists() and anchor.parent != anchor:
             anchor = anchor.parent
-        self.root = Path(tempfile.mkdtemp(prefix=f".{self.out.name or 'out'}.partial-",
+        self.root = Path(tempfile.mkdtemp(prefix=f".{self.out.name or 'out'}.partial-"
+                                          f"{_sweep().get('id', '')}",
                                           dir=anchor)).resolve()
         self.targets = {self.root / "out": self.out}
         self.config = dict(config)
@@ -374,33 +375,50 @@ def _hydra_main(cfg: DictConfig):
         raise
 
 
-REFUSED_FOLDER = ".refused"   # in a sweep folder: one file per job a launcher's worker refused
+SWEEP_ENVIRONMENT = "REPLICATION_SWEEP"   # set by replicate for the jobs of its sweep
+
+
+def _sweep():
+    """``{"id", "refused"}`` of the sweep this process runs a job of (:func:`main` sets
+    :data:`SWEEP_ENVIRONMENT` for its launchers' workers); ``{}`` outside one, or in a
+    worker that did not inherit the environment (a remote Dask worker)."""
+    import json
+
+    try:
+        value = json.loads(os.environ.get(SWEEP_ENVIRONMENT, "{}"))
+    except ValueError:
+        return {}
+    return value if isinstance(value, dict) else {}
 
 
 def _in_worker():
     """Whether this job runs in a sweep under a launcher other than Hydra's basic one
-    (joblib, submitit, Dask: each job in a process or machine of its own)."""
+    (joblib, submitit, Dask: each job in a process of its own) that knows its sweep
+    (:func:`_sweep`)."""
     from hydra.types import RunMode
 
     try:
         hydra_config = HydraConfig.get()
     except ValueError:
         return False
-    return (hydra_config.mode == RunMode.MULTIRUN
+    return (hydra_config.mode == RunMode.MULTIRUN and "refused" in _sweep()
             and not str(hydra_config.launcher._target_).endswith("BasicLauncher"))
 
 
 def _refuse(message):
     """A refused run: its ``error:`` line and status 2. In a launcher's worker the job
-    ends instead (its empty folder removed) with the message in the sweep folder's
-    :data:`REFUSED_FOLDER`, which the submitting ``replicate`` reads when every job is
-    back (:func:`_refused_jobs`): a job that exits would stop the jobs running beside it
-    (joblib) or end the sweep in a traceback (submitit)."""
+    ends instead (its empty folder removed) with the message in its sweep's own folder
+    of refusals (:func:`_sweep`), which the submitting ``replicate`` reads when every job
+    is back (:func:`_report_refused`): a job that exits would stop the jobs running beside
+    it (joblib) or end the sweep in a traceback (submitit). A worker without that folder
+    (a remote Dask worker) exits as a single run does; the Dask launcher returns that as a
+    failed job."""
     if not _in_worker():
         _error(message)
+        return
     print(f"error: {message}", file=sys.stderr, flush=True)
     hydra_config = HydraConfig.get()
-    folder = Path(hydra_config.sweep.dir) / REFUSED_FOLDER
+    folder = Path(_sweep()["refused"])
     folder.mkdir(parents=True, exist_ok=True)
     overrides = ",".join(str(o) for o in hydra_config.overrides.task)
     write_json_atomic(folder / f"{hydra_config.job.num}.json",
@@ -409,17 +427,16 @@ def _refuse(message):
     _drop_empty_job_folder()
 
 
-def _refused_jobs(sweep_dir, since):
-    """The refusals (:func:`_refuse`) written into ``sweep_dir`` at or after ``since``
-    (``time.time()``), which are then removed; ``[]`` when there are none."""
+def _refused_jobs(folder):
+    """The refusals (:func:`_refuse`) in ``folder``, job by job, which is then removed;
+    ``[]`` when there are none."""
     import json
 
-    folder = Path(sweep_dir) / REFUSED_FOLDER
+    folder = Path(folder)
     refused = []
     for path in sorted(folder.glob("*.json")) if folder.is_dir() else []:
         try:
-            if path.stat().st_mtime >= since - 1.0:
-                refused.append(json.loads(path.read_text()))
+            refused.append(json.loads(path.read_text()))
             path.unlink()
         except (OSError, ValueError):
             continue
@@ -493,8 +510,11 @@ def _hydra_message(error, overrides=()):
     if "LexerNoViableAltException" in text:
         line = text.split("LexerNoViableAltException:", 1)[1].strip().splitlines()[0].strip()
         key, _, value = line.partition("=")
+        quote = '"' if "'" in value else "'"
+        spelled = ",".join(f"{quote}{part}{quote}" for part in value.split(","))
         return (f"{line}: Hydra cannot read this value unquoted (characters such as accented "
-                f"letters need quotes); quote it: {key}='{value}'")
+                f"letters need quotes); quote it: {key}={spelled}"
+                + (" (each value of a sweep quoted on its own)" if "," in value else ""))
     if "ConfigLoader is not set" in text:
         return ("glob(...) chooses among config-group options in a sweep, not files: list "
                 "the files instead (-m data.path=A.npz,B.npz)")
@@ -590,14 +610,18 @@ def precheck(overrides):
     if not config.get("runner"):
         raise InputError("no experiment chosen: pass experiment=NAME, one of "
                          + ", ".join(available_experiments()))
-    out = config.get("out")
+    out, key = config.get("out"), "out"
     if out is None:  # Hydra's run folder (configs/config.yaml: out, else results/NAME)
-        out = next((line.split("=", 1)[1] for line in overrides
-                    if line.split("=", 1)[0] == "hydra.run.dir"), f"results/{config['name']}")
+        from hydra.core.override_parser.overrides_parser import OverridesParser
+
+        run_dir = [str(o.value()) for o in OverridesParser.create().parse_overrides(
+            list(overrides)) if o.key_or_group == "hydra.run.dir"]
+        out, key = (run_dir[-1], "hydra.run.dir") if run_dir else (
+            f"results/{config['name']}", "out")
     check_config(config, defaults)
     _note_unread(overrides, defaults, config["name"])
-    check_out(out, force=config.get("force", False))
-    check_writable(out)
+    check_out(out, force=config.get("force", False), key=key)
+    check_writable(out, key=key)
     return out
 
 
@@ -609,7 +633,8 @@ def _fixed_output(override):
     :data:`OUTPUT_FILE_KEYS`) to one value for every job of a sweep: not swept, not made
     per job with ``${...}``, not null or empty."""
     key = override.get_key_element().lstrip("+~")
-    if key not in ("out",) + OUTPUT_KEYS + OUTPUT_FILE_KEYS or override.is_sweep_override():
+    if (key not in ("out",) + OUTPUT_KEYS + OUTPUT_FILE_KEYS or override.is_sweep_override()
+            or override.is_delete() or "=" not in override.input_line):
         return False
     value = override.input_line.split("=", 1)[1].strip()
     return "${" not in value and value not in ("", "null")
@@ -701,9 +726,11 @@ def compose_first_job(args):
                         "last result would stay; leave out unset (each job writes "
                         "multirun/NAME/OVERRIDES, or hydra.sweep.dir=DIR/OVERRIDES), sweep "
                         "it (out=A,B) or make it per job (out=DIR/${seed})")
+                per_job = (f"{key}=DIR/${{seed}}/{Path(line.split('=', 1)[1]).name}"
+                           if key in OUTPUT_FILE_KEYS else f"{key}=DIR/${{seed}}")
                 print(f"note: {line} in a sweep: every job writes there, so only the last "
-                      f"job's files stay (each result.json is kept); {key}=DIR/${{seed}} or "
-                      f"leaving {key} unset keeps them per job", file=sys.stderr)
+                      f"job's files stay (each result.json is kept); {per_job} or leaving "
+                      f"{key} unset keeps them per job", file=sys.stderr)
         with initialize_config_dir(config_dir=CONFIG_DIR, version_base="1.3"):
             hydra_config = compose(config_name="config", overrides=overrides + launcher,
                                    return_hydra_config=True).hydra
@@ -760,9 +787,13 @@ def _missing_chain(path):
 
 
 def _remove_empty(chain):
-    for folder in chain:
+    """Remove the folders of ``chain`` (deepest first) while they are empty; those already
+    gone are passed over."""
+    for folder in map(Path, chain):
         try:
             folder.rmdir()
+        except FileNotFoundError:
+            continue
         except OSError:
             return
 
@@ -811,7 +842,7 @@ def main():
         raise Interrupted()
 
     previous = signal.signal(signal.SIGTERM, terminate)
-    chain, sweep_dir, started = [], None, time.time()
+    chain, sweep_dir = [], None
     try:
         flags = [arg for arg in args if arg.startswith("-")]
         if flags and set(flags) <= {"-m", "--multirun"}:
@@ -821,6 +852,7 @@ def main():
                 sweep_dir = compose_first_job([arg for arg in args if arg not in flags])
             except InputError as error:
                 _error(error)
+            chain = _start_sweep(sweep_dir)
         if not flags:
             # a single run: refuse bad config before Hydra creates the run folder
             try:
@@ -837,20 +869,37 @@ def main():
                 _remove_empty(chain)
             raise
         if sweep_dir is not None:
-            _report_refused(sweep_dir, started)
+            _report_refused(chain)
     except KeyboardInterrupt:
-        _remove_empty(chain)
         if sweep_dir is not None:
-            _drop_partial_jobs(sweep_dir, started)
+            _drop_partial_jobs(sweep_dir)
+        _remove_empty(chain)
         _interrupted(sweep=sweep_dir is not None)
     finally:
         signal.signal(signal.SIGTERM, previous)
+        os.environ.pop(SWEEP_ENVIRONMENT, None)
 
 
-def _report_refused(sweep_dir, since):
+def _start_sweep(sweep_dir):
+    """Name this sweep for its jobs (:data:`SWEEP_ENVIRONMENT`, which the launchers'
+    worker processes inherit): an id, in its staging folders' names, and a folder of
+    refusals of its own (absolute, next to ``sweep_dir``), so that two sweeps into one
+    folder keep their refusals and clean-ups apart. Returns the folders of the refusals'
+    path that do not exist yet, deepest first (removed when empty after the sweep)."""
+    import json
+    import uuid
+
+    sweep_id = uuid.uuid4().hex[:8]
+    folder = Path(sweep_dir).absolute() / f".refused-{sweep_id}"
+    os.environ[SWEEP_ENVIRONMENT] = json.dumps({"id": sweep_id, "refused": str(folder)})
+    return _missing_chain(folder)
+
+def _report_refused(chain):
     """After a sweep, the jobs a launcher's workers refused (:func:`_refuse`): one
-    ``error:`` line and status 2, as a refused run ends."""
-    refused = _refused_jobs(sweep_dir, since)
+    ``error:`` line and status 2, as a refused run ends. ``chain``: the folders
+    :func:`_start_sweep` gave, removed when empty."""
+    refused = _refused_jobs(_sweep().get("refused", chain[0] if chain else "."))
+    _remove_empty(chain)
     if refused:
         first = refused[0]
         more = f" (and {len(refused) - 1} more job(s), their error: lines above or in the " \
@@ -860,27 +909,19 @@ def _report_refused(sweep_dir, since):
                "; after fixing, the same sweep with resume=true runs only what is missing")
 
 
-def _drop_partial_jobs(sweep_dir, since):
-    """After Ctrl-C in a sweep, remove the staging folders of the jobs it stopped (a
-    launcher's workers can be killed before their own clean-up runs) and the job folders
-    they leave empty, both made at or after ``since``; finished jobs stay."""
+def _drop_partial_jobs(sweep_dir):
+    """After Ctrl-C in a sweep, remove this sweep's staging folders (named with its id,
+    :func:`_start_sweep`: a launcher's workers can be killed before their own clean-up
+    runs) and the job folders they leave empty; finished jobs and other sweeps' folders
+    stay."""
+    sweep_id = _sweep().get("id")
     root = Path(sweep_dir)
-    if not root.is_dir():
+    if not sweep_id or not root.is_dir():
         return
-    for path in root.glob(".*.partial-*"):
-        try:
-            if path.is_dir() and path.stat().st_mtime >= since - 1.0:
-                shutil.rmtree(path, ignore_errors=True)
-        except OSError:
-            continue
-    for path in root.iterdir():
-        try:
-            if (path.is_dir() and not path.name.startswith(".")
-                    and path.stat().st_mtime >= since - 1.0 and not any(path.iterdir())):
-                path.rmdir()
-        except OSError:
-            continue
-
+    for path in root.glob(f".*.partial-{sweep_id}*"):
+        shutil.rmtree(path, ignore_errors=True)
+        job = root / path.name[1:].rsplit(f".partial-{sweep_id}", 1)[0]
+        _remove_empty([job])
 
 if __name__ == "__main__":
     main()

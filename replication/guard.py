@@ -168,7 +168,7 @@ def committed_folder(path):
     return None
 
 
-def check_out(out, *, force):
+def check_out(out, *, force, key="out"):
     """Refuse an empty ``out`` and, without ``force``, one inside ``results/``.
 
     Parameters
@@ -177,19 +177,23 @@ def check_out(out, *, force):
         The ``out`` config value.
     force : bool
         ``force=true``: the committed ``results/`` may be written.
+    key : str
+        The setting that named the folder, for the messages (``hydra.run.dir`` without
+        ``out``).
     """
-    check(isinstance(out, str), f"out={out!r}: expected a folder path")
-    check(out.strip() != "", "out=: empty; expected a folder (out=DIR), outside results/ "
-                             "unless force=true")
+    check(isinstance(out, str), f"{key}={out!r}: expected a folder path")
+    check(out.strip() != "", f"{key}=: empty; expected a folder (out=DIR), outside "
+                             "results/ unless force=true")
     if not force:
         for folder in protected_folders():
             if inside(out, folder):
-                raise InputError(f"out={out}: inside results/, the committed results; pass "
-                                 "force=true to overwrite them, or out=DIR elsewhere")
+                raise InputError(f"{key}={out}: inside results/, the committed results; "
+                                 "pass force=true to overwrite them, or out=DIR elsewhere")
 
 
-def check_writable(out):
-    """Refuse an output folder that cannot be created or written, without creating it."""
+def check_writable(out, key="out"):
+    """Refuse an output folder that cannot be created or written, without creating it;
+    ``key`` names the setting in the messages."""
     out = Path(out)
     probe = out
     while not probe.exists():
@@ -197,7 +201,7 @@ def check_writable(out):
             break
         probe = probe.parent
     if probe.exists() and not probe.is_dir():
-        raise InputError(f"out={out}: {probe} is not a folder; expected a folder path")
+        raise InputError(f"{key}={out}: {probe} is not a folder; expected a folder path")
     try:  # a real write (permissions alone say nothing for root or on /proc), undone
         if probe == out:
             fd, name = tempfile.mkstemp(dir=out, prefix=".write-probe-")
@@ -210,7 +214,7 @@ def check_writable(out):
             first.mkdir()
             first.rmdir()
     except OSError as error:
-        raise InputError(f"out={out}: cannot write there ({error.strerror or error})") from None
+        raise InputError(f"{key}={out}: cannot write there ({error.strerror or error})") from None
 
 
 def input_files(path):

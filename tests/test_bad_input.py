@@ -588,31 +588,35 @@ def test_a_shared_figure_folder_in_a_sweep_is_noted(tmp_path, capsys):
     assert "note:" not in capsys.readouterr().err
 
 
-def test_refusals_noted_by_workers_are_read_once_and_only_when_new(tmp_path):
-    folder = tmp_path / cli.REFUSED_FOLDER
+def test_refusals_noted_by_workers_are_read_once(tmp_path):
+    folder = tmp_path / ".refused-abc"
     folder.mkdir()
-    (folder / "0.json").write_text(json.dumps({"job": 0, "overrides": "seed=0",
-                                               "message": "old"}))
-    os.utime(folder / "0.json", (1.0, 1.0))
-    (folder / "1.json").write_text(json.dumps({"job": 1, "overrides": "seed=1",
-                                               "message": "new"}))
-    refused = cli._refused_jobs(tmp_path, since=time.time() - 60)
-    assert [item["message"] for item in refused] == ["new"]
+    for job in (1, 0):
+        (folder / f"{job}.json").write_text(json.dumps({"job": job, "overrides": f"seed={job}",
+                                                        "message": f"m{job}"}))
+    assert [item["message"] for item in cli._refused_jobs(folder)] == ["m0", "m1"]
     assert not folder.exists()
-    assert cli._refused_jobs(tmp_path, since=0.0) == []
+    assert cli._refused_jobs(folder) == []
 
 
-def test_an_interrupted_sweep_loses_only_what_its_stopped_jobs_left(tmp_path):
-    started = time.time()
+def test_an_interrupted_sweep_loses_only_what_its_stopped_jobs_left(tmp_path, monkeypatch):
+    """Only this sweep's staging folders (named with its id) and the job folders they
+    leave empty go; finished jobs and another sweep's running job stay."""
+    monkeypatch.setenv(cli.SWEEP_ENVIRONMENT, json.dumps({"id": "abc12345", "refused": "x"}))
     (tmp_path / "seed=0").mkdir()
     (tmp_path / "seed=0" / "result.json").write_text("{}")
     (tmp_path / "seed=1").mkdir()
-    (tmp_path / ".seed=1.partial-abc" / "out").mkdir(parents=True)
-    old = tmp_path / "seed=9"
-    old.mkdir()
-    os.utime(old, (started - 3600, started - 3600))
-    cli._drop_partial_jobs(tmp_path, started)
-    assert sorted(os.listdir(tmp_path)) == ["seed=0", "seed=9"]
+    (tmp_path / ".seed=1.partial-abc12345q7" / "out").mkdir(parents=True)
+    (tmp_path / "seed=2").mkdir()
+    (tmp_path / ".seed=2.partial-other123zz" / "out").mkdir(parents=True)
+    cli._drop_partial_jobs(tmp_path)
+    assert sorted(os.listdir(tmp_path)) == [".seed=2.partial-other123zz", "seed=0", "seed=2"]
+
+
+def test_a_deleted_output_key_in_a_sweep_is_no_traceback(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    status, err = replicate(capsys, "-m", "experiment=fig08_mesh", "zoom=3,4", "~out")
+    assert "Traceback" not in err and status == 2 and err.startswith("error: "), err
 
 
 def test_a_value_hydra_cannot_read_unquoted_gets_the_quoted_spelling(tmp_path, capsys,
@@ -620,3 +624,10 @@ def test_a_value_hydra_cannot_read_unquoted_gets_the_quoted_spelling(tmp_path, c
     monkeypatch.chdir(tmp_path)
     status, err = replicate(capsys, "experiment=fig08_mesh", f"out={tmp_path}/\u00e9")
     assert_refused(status, err, f"quote it: out='{tmp_path}/\u00e9'", tmp_path)
+
+
+def test_the_quoted_spelling_of_a_sweep_quotes_each_value(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    status, err = replicate(capsys, "-m", "experiment=fig08_mesh", "zoom=3,4",
+                            "out=a\u00e9,b")
+    assert_refused(status, err, "quote it: out='a\u00e9','b' (each value", tmp_path)

@@ -92,8 +92,26 @@ def rollout_error(data, fit, held_out, *, start="recorded"):
 def one_step_error(data, fit, held_out):
     """RMS one-step prediction error (units of ``h``) over the held-out frames."""
     frames = np.concatenate([chunk[:-1] for chunk in held_out]) if held_out else np.zeros(0, int)
+    return one_step_rms(data, fit, frames)
+
+
+def one_step_rms(data, fit, frames):
+    """RMS length of the free particles' one-step residuals (units of ``h``) on ``frames``
+    (those with a frame before and after); NaN without any."""
+    frames = np.asarray(frames, dtype=int)
     frames = frames[(frames >= 1) & (frames <= data.n_frames - 2)]
     if frames.size == 0:
         return float("nan")
     r = residuals(data, fit, frames)[:, data.free]
     return float(np.sqrt(np.mean(np.sum(r ** 2, axis=2))) / data.h)
+
+
+def max_strain(data, rest, frames):
+    """Largest elongation ``L / l - 1`` of any spring on ``frames`` (recorded positions,
+    rest lengths ``rest`` (6,) per type); NaN without frames."""
+    frames = np.asarray(frames, dtype=int)
+    if frames.size == 0:
+        return float("nan")
+    x = data.x[frames]
+    lengths = np.linalg.norm(x[:, data.ops.b] - x[:, data.ops.a], axis=2)
+    return float(np.max(lengths / np.asarray(rest)[data.ops.kind][None, :]) - 1.0)

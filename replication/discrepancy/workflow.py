@@ -26,8 +26,16 @@ import numpy as np
 from scipy.stats import chi2
 
 from replication.cloth import regression
+from replication.cloth.identify.problem import meaningless_noise_warning
 from replication.discrepancy import effects as fx
-from replication.discrepancy.gap import STARTS, one_step_error, rollout_error, split_frames
+from replication.discrepancy.gap import (
+    STARTS,
+    max_strain,
+    one_step_error,
+    one_step_rms,
+    rollout_error,
+    split_frames,
+)
 from replication.discrepancy.naming import score_candidates
 from replication.discrepancy.residuals import SIGMA_FLOOR_H, residuals, structure, where
 from replication.errors import InputError
@@ -49,6 +57,10 @@ CLUSTER_BLOCK = 5
 # noise-free data, once the right effects are in, what is left is round-off, and a further
 # term can only "improve" it by round-off.
 MIN_GAIN_H = 1e-6
+# A named effect must move the particles by more than this many float64 round-offs of the
+# data's largest coordinate per step (RMS over the particle-frames the fit uses): below it,
+# what the effect "explains" is round-off of the positions, in whatever units they are
+ROUNDOFF_STEPS = 1e3
 
 
 def settings_from(config):
@@ -119,6 +131,21 @@ def _used(data, frames, mask):
 def _power(data, r, frames, mask):
     """Mean square of residuals ``r`` over :func:`_used` particle-frames."""
     return float(np.mean(r[_used(data, frames, mask)] ** 2))
+
+
+def _displacement_h(data, fit, name, frames, mask):
+    """RMS one-step displacement (units of ``h``) that the term ``name`` of ``fit`` gives
+    the particles, over the :func:`_used` particle-frames of ``frames``."""
+    q = regression.state_frames(data, fit.base, frames)
+    plugin = fx.get_effect(name)
+    move = (plugin.basis(q) @ np.asarray(fit.term(name), dtype=float)) * data.scene.dt ** 2
+    return float(np.sqrt(np.mean(np.sum(move[_used(data, frames, mask)] ** 2, axis=-1)))
+                 / data.h)
+
+
+def roundoff_h(data):
+    """Float64 round-off of the data's largest coordinate, in units of ``h``."""
+    return float(np.finfo(float).eps * np.max(np.abs(data.x)) / data.h)
 
 
 def _state(context, names, base_fit):
@@ -210,8 +237,15 @@ def _forward(context, state, banned, tried, rounds, attempt):
                               and explained_power >= settings["power_min"])
                    else None)
             evidence["confirmed_as"] = how
+            # what the effect itself moves, against the round-off of the positions: a fit
+            # can improve the held-out rollout through its base model alone
+            evidence["displacement_h"] = _displacement_h(data, trial["fit"], name, frames,
+                                                         mask)
+            evidence["roundoff_h"] = context["roundoff_h"]
             confirmed = bool(how is not None and trial["gap"]["rollout"]
-                             < state["gap"]["rollout"] - MIN_GAIN_H)
+                             < state["gap"]["rollout"] - MIN_GAIN_H
+                             and evidence["displacement_h"]
+                             > ROUNDOFF_STEPS * context["roundoff_h"])
             tried.append({"name": name, "step": len(selected), "pass": attempt,
                           "confirmed": confirmed, "evidence": evidence})
             if confirmed and (best is None or q_rank < best[1]):
@@ -340,6 +374,9 @@ LIMIT_CAVEAT = "nothing is named"   # how the detection-limit warning starts
 # with nothing named and nothing unexplained, base-fit residuals this many times what the
 # noise explains (over every free particle-frame, the constrained ones included) are warned
 QUIET_EXCESS = 10.0
+# the final model's held-out one-step residuals over the larger of its training ones and
+# the noise floor above which it is warned not to predict the held-out frames
+HELD_OUT_EXCESS = 10.0
 
 
 def detection_limit(data, mask, sigma_h, frames):
@@ -356,6 +393,48 @@ def detection_limit(data, mask, sigma_h, frames):
             "displacement_h": float(displacement_h), "share_of_weight": float(share)}
 
 
+def generalisation(data, fit, frames, held, sigma_h):
+    """Does the final model predict the held-out frames as well as the training frames?
+
+    Parameters
+    ----------
+    data : regression.Data
+    fit : regression.Fit
+        The final model.
+    frames : (F,) int ndarray
+        Training frames the fits use.
+    held : list of (B,) int ndarrays
+        Held-out blocks (:func:`replication.discrepancy.gap.split_frames`).
+    sigma_h : float
+        Estimated position noise (units of ``h``).
+
+    Returns
+    -------
+    dict (JSON-ready): ``held_out_one_step_h`` and ``training_one_step_h`` (RMS length of
+    the one-step residuals, :func:`replication.discrepancy.gap.one_step_rms`),
+    ``noise_floor_h`` (what noise alone gives that length: ``sqrt(18) sigma``), ``ratio``
+    (held-out over the larger of the other two), ``tau``, ``training_max_strain`` and
+    ``held_out_max_strain`` (largest ``L / l - 1`` of the recorded springs at the fit's
+    rest lengths) and ``tau_lower_bound``: no training frame stretches a spring beyond
+    ``tau`` (so the training frames show only that tau is at least what they stretch
+    to) and a held-out frame does.
+    """
+    held_frames = np.concatenate([chunk[:-1] for chunk in held])
+    held_error = one_step_rms(data, fit, held_frames)
+    train_error = one_step_rms(data, fit, frames)
+    floor = float(np.sqrt(18.0) * sigma_h)
+    tau = float(np.min(fit.base.tau))
+    train_strain = max_strain(data, fit.base.rest, np.unique(np.r_[frames, frames + 1]))
+    held_strain = max_strain(data, fit.base.rest, np.unique(np.r_[held_frames,
+                                                                  held_frames + 1]))
+    return {"held_out_one_step_h": held_error, "training_one_step_h": train_error,
+            "noise_floor_h": floor,
+            "ratio": float(held_error / max(train_error, floor, 1e-300)),
+            "tau": tau, "training_max_strain": train_strain,
+            "held_out_max_strain": held_strain,
+            "tau_lower_bound": bool(train_strain <= tau < held_strain)}
+
+
 def _no_anisotropy(parameters):
     """Whether an anisotropic stiffness's two coefficients agree within ``SAME_DIRECTIONS``
     standard errors of their difference (its variance from the covariance of the two, which
@@ -370,12 +449,16 @@ def _no_anisotropy(parameters):
 
 
 def _warnings(data, base_fit, located, named_effects, gap_before, gap_after, limit=None,
-              unexplained=None):
-    """Lines a user should read before the verdict: a base fit that cannot be right, a
-    structure measured without the constraint mask, named effects that shrink the
+              unexplained=None, generalises=None):
+    """Lines a user should read before the verdict: frames that show no cloth's motion, a
+    base fit that cannot be right, a structure measured without the constraint mask, a
+    final model that does not predict the held-out frames, named effects that shrink the
     held-out gap little, an anisotropic stiffness without anisotropy, a body force that
     looks like a unit or time-step mistake."""
     warnings = []
+    meaningless = meaningless_noise_warning(located.get("noise_sigma_h", 0.0))
+    if meaningless is not None:
+        warnings.append(meaningless)
     if located.get("mask_dropped"):
         warnings.append(
             "no particle stays clear of the deformation constraint for a whole window of "
@@ -393,6 +476,21 @@ def _warnings(data, base_fit, located, named_effects, gap_before, gap_after, lim
         warnings.append("the base model does not fit these data plausibly ("
                         + "; ".join(odd) + "): check the file (units, dt, frame order, "
                         "velocities) before reading the verdict")
+    if generalises is not None and generalises["ratio"] > HELD_OUT_EXCESS:
+        g = generalises
+        line = (f"the final model's one-step residuals on the held-out frames are "
+                f"{g['held_out_one_step_h']:.3g} h RMS, {g['ratio']:.3g} x the larger of its "
+                f"training frames' ({g['training_one_step_h']:.3g} h) and the noise floor "
+                f"({g['noise_floor_h']:.3g} h): it does not predict the held-out frames, so "
+                "the verdict (named effects, nothing missing) holds for the training frames "
+                "only")
+        if g["tau_lower_bound"]:
+            line += (f"; tau={g['tau']:.3g} is only a lower bound: the held-out frames "
+                     f"stretch springs to {g['held_out_max_strain']:.3g}, beyond tau and "
+                     f"any training frame (at most {g['training_max_strain']:.3g}), and "
+                     "there the fitted model clamps springs the cloth may not clamp "
+                     "(frames that stretch the cloth further, in training, determine tau)")
+        warnings.append(line)
     if named_effects and gap_after > 0 and gap_before / gap_after < MIN_SHRINK:
         warnings.append(
             f"the named effect(s) shrink the held-out rollout gap only "
@@ -510,7 +608,8 @@ def analyse(trajectory, config=None, *, rng=None):
     state = {"fit": base_fit, "gap": gap_before, "r": residuals(data, base_fit, frames)}
     state["sigma"] = _scaled_q(data, state["r"], frames, settings, mask)[1]
     context = {"data": data, "train": train, "held": held, "frames": frames, "mask": mask,
-               "settings": settings, "model": model, "rng": rng, "start": start}
+               "settings": settings, "model": model, "rng": rng, "start": start,
+               "roundoff_h": roundoff_h(data)}
     tried, rounds, dropped, banned = [], [], [], set()
     for attempt in range(settings["reselect"] + 1):
         named, current = _forward(context, state, banned, tried, rounds, attempt)
@@ -552,6 +651,7 @@ def analyse(trajectory, config=None, *, rng=None):
                  / max(_scaled_q(data, state["r"], frames, settings, mask, common)[0] - 1.0,
                        1e-12)) if selected else 1.0
     limit = detection_limit(data, mask, located["noise_sigma_h"], frames)
+    generalises = generalisation(data, final, frames, held, located["noise_sigma_h"])
     unexplained = None
     if q_current > settings["q_threshold"] and (
             not selected or remaining > settings["unexplained_fraction"]):
@@ -570,6 +670,7 @@ def analyse(trajectory, config=None, *, rng=None):
         "gap": {"before": gap_before, "after": gap_current,
                 "rollout_steps": int(min(len(chunk) for chunk in held)),
                 "one_step_noise_floor_h": float(np.sqrt(6.0) * located["noise_sigma_h"]),
+                "generalisation": generalises,
                 "held_out_frames": [[int(c[0]), int(c[-1])] for c in held]},
         "where": located,
         "where_final": {k: located_final[k] for k in ("Q", "Q_by_window", "window_starts",
@@ -585,6 +686,6 @@ def analyse(trajectory, config=None, *, rng=None):
         "detection_limit": limit,
         "warnings": _warnings(data, base_fit, located, named_effects,
                               gap_before["rollout"], gap_current["rollout"], limit,
-                              unexplained),
+                              unexplained, generalises),
         "settings": settings,
     }

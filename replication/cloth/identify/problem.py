@@ -304,6 +304,23 @@ def _residual_fit(cost, best):
                    "residual_frames": [int(frames[0]), int(frames[-1])]}
 
 
+def meaningless_noise_warning(noise_h):
+    """The warning that the frames do not show one cloth's motion step to step, or None.
+
+    ``noise_h`` is the position noise (units of ``h``) estimated from a fitted model's
+    one-step residuals (:func:`replication.cloth.noise.noise_sigma`); above
+    :data:`MEANINGLESS_NOISE_H` no fit to the frames means anything. One check for every
+    workflow that fits the cloth model (``cloth_identify``, the discrepancy workflow).
+    """
+    if not noise_h > MEANINGLESS_NOISE_H:
+        return None
+    return (f"the positions carry noise of about {noise_h:.2g} h (estimated "
+            f"from the residuals), more than {MEANINGLESS_NOISE_H:g} of a spring: the frames "
+            "do not show one cloth's motion step to step (frames out of order or from "
+            "different runs, another dt, positions in other units?); the answer means "
+            "nothing")
+
+
 def diagnostic_warnings(diagnostics, best, names):
     """One line per finding of :func:`diagnose` a user should act on."""
     best = dict(zip(names, np.asarray(best, dtype=float)))
@@ -333,13 +350,9 @@ def diagnostic_warnings(diagnostics, best, names):
             f"without a model ({diagnostics['data_noise_h']:.2g} h): the answer is off "
             "(approximate, or a local optimum), the model lacks an effect, or the noise "
             "is far from even across particles")
-    if diagnostics["noise_h"] > MEANINGLESS_NOISE_H:
-        warnings.append(
-            f"the positions carry noise of about {diagnostics['noise_h']:.2g} h (estimated "
-            f"from the residuals), more than {MEANINGLESS_NOISE_H:g} of a spring: the frames "
-            "do not show one cloth's motion step to step (frames out of order or from "
-            "different runs, another dt, positions in other units?); the answer means "
-            "nothing")
+    meaningless = meaningless_noise_warning(diagnostics["noise_h"])
+    if meaningless is not None:
+        warnings.append(meaningless)
     elif diagnostics["noise_h"] > NOISE_WARN_H:
         warnings.append(
             f"the positions carry noise of about {diagnostics['noise_h']:.2g} h (estimated "

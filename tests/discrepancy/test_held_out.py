@@ -1,0 +1,85 @@
+"""Checks an outside user's files got past without a warning (issue: wrong answers
+unwarned): a final model that does not predict the held-out frames (tau only a lower
+bound), frames that show no cloth's motion, an effect named from round-off. The data come
+from the suite's independent generator (replication/testdata/cloth_outside.py)."""
+
+import numpy as np
+import pytest
+
+from replication.cloth.identify.problem import meaningless_noise_warning
+from replication.cloth.io import read_trajectory
+from replication.discrepancy.workflow import HELD_OUT_EXCESS, analyse
+from replication.testdata import cloth_outside as og
+
+HELD_OUT = "does not predict the held-out frames"
+
+
+def _outside(tmp_path, *, tau, noise_h=0.0, n_frames=100, effects=(), scale=1.0,
+             shuffle=False):
+    """An outside trajectory (K = 4), its positions times ``scale`` (gravity and dt as
+    made), its frames permuted when ``shuffle``; read back as a user's file."""
+    made = og.make({"n_frames": n_frames, "K": 4.0, "tau": tau, "noise_h": noise_h,
+                    "seed": 5, "effects": list(effects)})
+    made["positions"] = made["positions"] * scale
+    if shuffle:
+        made["positions"] = made["positions"][np.random.default_rng(0).permutation(n_frames)]
+    path = tmp_path / "outside.npz"
+    og.write_npz(path, made)
+    return read_trajectory(path)
+
+
+@pytest.fixture(scope="module")
+def undetermined_tau(tmp_path_factory):
+    """tau = 0.6, never reached in 100 frames of a falling sheet: the training frames only
+    bound tau from below, and the held-out block (frames 74-98) stretches further."""
+    return analyse(_outside(tmp_path_factory.mktemp("tau"), tau=0.6),
+                   {"n_subsamples": 10}, rng=0)
+
+
+def test_a_model_that_does_not_predict_the_held_out_frames_is_warned(undetermined_tau):
+    result = undetermined_tau
+    g = result["gap"]["generalisation"]
+    assert result["named_effects"] == [] and result["unexplained"] is None
+    # the fitted tau is the training frames' largest stretch, far below the truth
+    assert g["tau"] < 0.3 and g["training_max_strain"] <= g["tau"] < g["held_out_max_strain"]
+    assert g["ratio"] > HELD_OUT_EXCESS and g["tau_lower_bound"]
+    line = next(w for w in result["warnings"] if HELD_OUT in w)
+    assert f"tau={g['tau']:.3g} is only a lower bound" in line
+
+
+def test_a_model_whose_tau_the_training_frames_determine_is_not_warned(tmp_path):
+    result = analyse(_outside(tmp_path, tau=0.1), {"n_subsamples": 10}, rng=0)
+    g = result["gap"]["generalisation"]
+    assert result["named_effects"] == []
+    assert abs(g["tau"] / 0.1 - 1) < 0.02
+    assert g["ratio"] < HELD_OUT_EXCESS
+    assert not any(HELD_OUT in w for w in result["warnings"])
+
+
+def test_frames_out_of_order_are_warned_by_the_check_cloth_identify_uses(tmp_path):
+    result = analyse(_outside(tmp_path, tau=0.3, noise_h=1e-4, shuffle=True),
+                     {"n_subsamples": 10}, rng=0)
+    expected = meaningless_noise_warning(result["where"]["noise_sigma_h"])
+    assert expected is not None and "the answer means nothing" in expected
+    assert expected in result["warnings"]
+
+
+def test_frames_in_order_get_no_such_warning(tmp_path):
+    result = analyse(_outside(tmp_path, tau=0.3, noise_h=1e-4), {"n_subsamples": 10}, rng=0)
+    assert meaningless_noise_warning(result["where"]["noise_sigma_h"]) is None
+    assert not any("means nothing" in w for w in result["warnings"])
+
+
+def test_positions_in_mm_name_the_body_force_and_nothing_from_round_off(tmp_path):
+    """Positions in mm against gravity in m/s^2: the data fall 1000 x slower than gravity
+    says, a body force of 999 x the weight explains every step, and what is left is
+    round-off of the positions, from which nothing may be named."""
+    result = analyse(_outside(tmp_path, tau=0.6, scale=1e3), {"n_subsamples": 10}, rng=0)
+    assert [e["name"] for e in result["named_effects"]] == ["body_force"]
+    force = result["named_effects"][0]["parameters"]["coefficients"]
+    assert force["f_z"] == pytest.approx(-9.81 * 0.001 * 999, rel=1e-3)
+    assert any("999 x the weight" in w for w in result["warnings"])
+    for tried in result["tried"]:
+        evidence = tried["evidence"]
+        if evidence["displacement_h"] < 1e3 * evidence["roundoff_h"]:
+            assert not tried["confirmed"]

@@ -32,7 +32,7 @@ from replication.provenance import (
     path_sha256,
 )
 from replication.results import read_result
-from replication.sweep import PREFIX, overrides_of, read_gathered
+from replication.sweep import PREFIX, inputs_of, overrides_of, read_gathered
 
 # the reading runner, named so that this module's code hash covers it
 READING_RUNNER = f"{table1_readings.__name__}:{table1_readings.reading_run.__name__}"
@@ -129,9 +129,7 @@ def reading_of(line):
             "key": reading_key(line),
             "config_sha256": line.get("provenance.config_sha256"),
             "code_sha256": line.get("provenance.code_sha256"),
-            "inputs_sha256": {key[len("provenance.inputs_sha256."):]: value
-                              for key, value in line.items()
-                              if key.startswith("provenance.inputs_sha256.")},
+            "inputs_sha256": inputs_of(line),
             "wall_seconds": line.get("wall_seconds"),
             "restarts": line.get("reading.restarts") or 1,
             "references": refs}

@@ -2,8 +2,9 @@
 
 Gathers the ``metrics`` of the area benchmarks (``bench_*`` experiments, run before it by
 ``replicate-all``), the last full test-suite run (``results/tests.json``, written by the
-test suite itself) and the last full regeneration (``results/regenerate-full.json``,
-written when ``replicate-all`` recomputed every result).
+test suite itself), the last full regeneration (``results/regenerate-full.json``,
+written when ``replicate-all`` recomputed every result) and how much of the baselines
+study's run time (``time_split``) is spent inside the cost.
 """
 
 from __future__ import annotations
@@ -22,7 +23,8 @@ def gather_benchmarks(config, out):
     ----------
     config : dict
         The resolved ``bench`` config (``results_dir``: where ``bench_*/result.json``,
-        ``tests.json`` and ``regenerate-full.json`` are read; ``goals``).
+        ``tests.json`` and ``regenerate-full.json`` are read; ``goals``; ``time_split``:
+        the experiment whose runs' time is split into cost and optimiser code, or null).
     out : Path
         The run's output folder.
     """
@@ -44,4 +46,21 @@ def gather_benchmarks(config, out):
             record = json.loads(path.read_text())
             metrics[f"{label}_seconds"] = record.get(key)
             sources[label] = record
+    split = _time_split(results_dir, config.get("time_split"))
+    if split is not None:
+        sources["time_split"] = split
     return {"metrics": metrics, "sources": sources, "goals": config["goals"]}
+
+
+def _time_split(results_dir, name):
+    """The runs' time of experiment ``name`` (a baselines study) and the part of it spent
+    inside the cost, summed over references, optimisers and seeds; None without them."""
+    path = results_dir / str(name) / "result.json"
+    if name is None or not path.exists():
+        return None
+    rows = [s for by_opt in read_result(path).get("summary", {}).values()
+            for s in by_opt.values()]
+    if not rows or any("objective_seconds" not in s for s in rows):
+        return None
+    return {"experiment": name, "run_seconds": sum(s["run_seconds"] for s in rows),
+            "objective_seconds": sum(s["objective_seconds"] for s in rows)}

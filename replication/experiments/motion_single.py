@@ -23,7 +23,7 @@ from replication.experiments.motion import (
     check_motion,
 )
 from replication.motion import baselines, irc, pyramid, single
-from replication.motion.frame_checks import frame_warnings
+from replication.motion.frame_checks import frame_checks
 from replication.motion.derivatives import sequence_derivatives
 from replication.progress import bar, progress
 
@@ -236,6 +236,7 @@ def single_rotation(config, out):
              else find_rotation_shown(sequence.frames, settings))
     paper, refined = found["paper"], found["refined"]
     progress(f"paper: {paper}; refined: {refined}")
+    checks = frame_checks(sequence.frames, sigma=settings["sigma"])
     result = {
         "data": sequence.source,
         "irc": paper,
@@ -243,7 +244,8 @@ def single_rotation(config, out):
         # the pyramid's grid is its top level's, in input pixels (cell x factor)
         "warnings": answer_warnings(paper, refined, settings, found["grid"],
                                     sequence.frames.shape[1:])
-        + frame_warnings(sequence.frames, sigma=settings["sigma"]),
+        + checks["warnings"],
+        "frame_checks": checks["measures"],
         "seconds": found["seconds"],
         "pixels_used": int(len(found["pixels"])),
         "region_pixels": int(np.count_nonzero(found["region"])),

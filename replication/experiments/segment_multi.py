@@ -14,7 +14,7 @@ import numpy as np
 from replication.errors import check
 from replication.experiments.motion import EDGE_CELLS, check_border, check_motion
 from replication.experiments.segment import _load, score_objects
-from replication.motion.frame_checks import frame_warnings
+from replication.motion.frame_checks import frame_checks
 from replication.progress import progress
 
 FIGURE_DIR = Path("figures")
@@ -175,7 +175,9 @@ def segment_sequence(config, out):
         sequence.frames, settings, None if "pyramid" in found else found["pixels"])
     result["warnings"] += edge_warnings(found, settings)
     # what the IRC equation assumes of the whole frame: motion_single's checks
-    result["warnings"] += frame_warnings(sequence.frames, sigma=settings["ea"]["sigma"])
+    checks = frame_checks(sequence.frames, sigma=settings["ea"]["sigma"])
+    result["warnings"] += checks["warnings"]
+    result["frame_checks"] = checks["measures"]
     if "pyramid" in found:
         result["pyramid"] = {"factor": found["pyramid"]["factor"],
                              "shapes": found["pyramid"]["shapes"],

@@ -4,8 +4,9 @@ The IRC equation ``-omega Ix (y - eta) + omega Iy (x - xi) + It = 0`` says that 
 intensity changes between frames only because the pixel moves, by a rotation: constant
 brightness, no divergence (a rotation or a translation keeps areas; a zoom does not), and a
 temporal change ``It`` above the sensor noise. Each check measures one of these on the whole
-frame, pair by pair, and :func:`frame_warnings` turns the measures into the warnings of
-``motion_single`` and ``segment_multi`` (one engine for both). The thresholds were measured
+frame, pair by pair, and :func:`frame_checks` gives the measures and the warnings
+(:func:`frame_warnings`) that ``motion_single`` and ``segment_multi`` write (one engine
+for both). The thresholds were measured
 on the suite's sequences (``synthetic_data/motion*``, and ``motion_accuracy``'s noisy cases,
 2 and 4 /255) and on an outside user's sequences (flicker, zoom, noise 10/255); each
 threshold's comment gives the measured range.
@@ -166,9 +167,8 @@ def frame_statistics(frames, *, sigma=1.5):
     return {"pairs": pairs, "worst": worst}
 
 
-def frame_warnings(frames, *, sigma=1.5):
-    """Warnings when the frames break an assumption of the IRC equation: a brightness
-    change between frames, a zoom (divergence), or noise dominating the normal flow.
+def frame_checks(frames, *, sigma=1.5):
+    """The whole-frame measures and their warnings, as the runners write them.
 
     Parameters
     ----------
@@ -178,9 +178,30 @@ def frame_warnings(frames, *, sigma=1.5):
 
     Returns
     -------
-    list of str
+    dict
+        ``measures``: the worst pair's measures (:func:`frame_statistics`) with the
+        ``thresholds`` they are held to; ``warnings``: :func:`frame_warnings` of them.
     """
     worst = frame_statistics(frames, sigma=sigma)["worst"]
+    thresholds = {"brightness_pct": BRIGHTNESS_PCT, "brightness_share": BRIGHTNESS_SHARE,
+                  "scale_pct": DIVERGENCE_PCT, "scale_share": DIVERGENCE_SHARE,
+                  "noise_flow": NOISE_FLOW}
+    return {"measures": {**worst, "thresholds": thresholds}, "warnings": frame_warnings(worst)}
+
+
+def frame_warnings(worst):
+    """Warnings when the frames break an assumption of the IRC equation: a brightness
+    change between frames, a zoom (divergence), or noise dominating the normal flow.
+
+    Parameters
+    ----------
+    worst : dict
+        The worst pair's measures, ``frame_statistics(frames, sigma=)["worst"]``.
+
+    Returns
+    -------
+    list of str
+    """
     warnings = []
     if worst["brightness_pct"] > BRIGHTNESS_PCT and \
             worst["brightness_share"] > BRIGHTNESS_SHARE:

@@ -9,8 +9,8 @@ from replication.motion.frame_checks import (
     BRIGHTNESS_PCT,
     DIVERGENCE_PCT,
     NOISE_FLOW,
+    frame_checks,
     frame_statistics,
-    frame_warnings,
     noise_sigma,
 )
 
@@ -57,7 +57,7 @@ def test_a_plain_rotation_raises_no_frame_warning():
     assert worst["brightness_pct"] < BRIGHTNESS_PCT / 5
     assert abs(worst["scale_pct"]) < DIVERGENCE_PCT / 3
     assert worst["noise_flow"] < NOISE_FLOW / 5
-    assert frame_warnings(frames) == []
+    assert frame_checks(frames)["warnings"] == []
 
 
 def test_flicker_of_one_percent_is_a_brightness_change():
@@ -65,7 +65,7 @@ def test_flicker_of_one_percent_is_a_brightness_change():
     frames = _disc_sequence(flicker=0.01)
     worst = frame_statistics(frames)["worst"]
     assert worst["brightness_pct"] == pytest.approx(2.0, rel=0.05)
-    warned = frame_warnings(frames)
+    warned = frame_checks(frames)["warnings"]
     assert len(warned) == 1 and warned[0].startswith("brightness changes between frames")
     assert "assumes constant brightness" in warned[0]
 
@@ -74,16 +74,16 @@ def test_a_zoom_is_a_divergence_and_a_rotation_is_not():
     frames = _disc_sequence(zoom=1.01)
     worst = frame_statistics(frames)["worst"]
     assert worst["scale_pct"] == pytest.approx(1.0, rel=0.15)
-    warned = frame_warnings(frames)
+    warned = frame_checks(frames)["warnings"]
     assert len(warned) == 1 and warned[0].startswith("the whole frame grows by")
-    shrinking = frame_warnings(_disc_sequence(zoom=1 / 1.01))
+    shrinking = frame_checks(_disc_sequence(zoom=1 / 1.01))["warnings"]
     assert len(shrinking) == 1 and shrinking[0].startswith("the whole frame shrinks by")
 
 
 def test_noise_dominates_at_12_but_not_at_2_per_255():
     assert noise_sigma(_disc_sequence(noise=12 / 255)[0]) == pytest.approx(12 / 255, rel=0.1)
-    assert frame_warnings(_disc_sequence(noise=2 / 255)) == []
-    warned = frame_warnings(_disc_sequence(noise=12 / 255))
+    assert frame_checks(_disc_sequence(noise=2 / 255))["warnings"] == []
+    warned = frame_checks(_disc_sequence(noise=12 / 255))["warnings"]
     assert _kinds(warned) == ["noise"] and "px/frame" in warned[0]
 
 
@@ -102,3 +102,7 @@ def test_both_runners_add_the_frame_warnings(tmp_path):
     multi = segment_sequence(dict(config, method=method), tmp_path / "multi")
     for result in (single, multi):
         assert sum(w.startswith("brightness changes") for w in result["warnings"]) == 1
+        # the measures behind the warning are in the result, with their thresholds
+        measures = result["frame_checks"]
+        assert measures["brightness_pct"] > measures["thresholds"]["brightness_pct"]
+        assert measures["noise_flow"] < measures["thresholds"]["noise_flow"]

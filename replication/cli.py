@@ -502,6 +502,10 @@ def _hydra_message(error, overrides=()):
     text = str(error)
     if text.startswith("Could not override '"):
         key = text.split("'", 2)[1]
+        if key.split(".")[-1] in optional_keys():
+            return (f"Could not override '{key}': not a key of this experiment's config, but "
+                    f"a setting the code reads (docs/experiments.md): add it with "
+                    f"+{key}=VALUE")
         close = _close_keys(key, overrides)
         if close:
             return (f"Could not override '{key}': no such key; did you mean "
@@ -538,15 +542,34 @@ def _hydra_message(error, overrides=()):
 
 @functools.lru_cache(maxsize=1)
 def optional_keys():
-    """Names the package reads with ``.get("NAME"``: settings a runner takes when given
-    and defaults otherwise, which experiment configs may leave out (``cost.frames``).
-    Read from the sources once per process, and only when an override adds a key."""
-    import re
+    """Settings a runner takes when given and defaults otherwise, which experiment configs
+    may leave out (``cost.frames``, ``method.tukey_c``): the names the package reads with
+    ``.get("NAME"``, and the keys of its module-level ``*DEFAULTS`` dicts (the settings
+    merged over a config's block, nested dicts included). Read from the sources once per
+    process, and only when an override adds a key or names one the config lacks."""
+    import ast
+
+    def dict_keys(node):
+        for key, value in zip(node.keys, node.values):
+            if isinstance(key, ast.Constant) and isinstance(key.value, str):
+                yield key.value
+            if isinstance(value, ast.Dict):
+                yield from dict_keys(value)
 
     names = set()
     for path in Path(__file__).resolve().parent.rglob("*.py"):
-        names.update(re.findall(r"\.get\(\s*[\"']([A-Za-z_][A-Za-z0-9_]*)[\"']",
-                                path.read_text()))
+        tree = ast.parse(path.read_text())
+        for node in ast.walk(tree):
+            if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+                    and node.func.attr == "get" and node.args
+                    and isinstance(node.args[0], ast.Constant)
+                    and isinstance(node.args[0].value, str)):
+                names.add(node.args[0].value)
+        for node in tree.body:
+            if (isinstance(node, ast.Assign) and isinstance(node.value, ast.Dict)
+                    and any(isinstance(t, ast.Name) and t.id.endswith("DEFAULTS")
+                            for t in node.targets)):
+                names.update(dict_keys(node.value))
     return frozenset(names)
 
 
@@ -818,6 +841,31 @@ def flag_overrides(args):
     return replaced
 
 
+def unknown_options(args):
+    """One line naming the options of ``args`` that neither the suite nor Hydra knows (Hydra's
+    argparse would print its whole usage), or ``None``."""
+    import difflib
+
+    from hydra._internal.utils import get_args_parser
+
+    parser = get_args_parser()
+    _, unknown = parser.parse_known_args(args)
+    unknown = [arg for arg in unknown if arg.startswith("-")]
+    if not unknown:
+        return None
+    known = ["--strict", "--quiet", "--progress"] + [
+        option for action in parser._actions for option in action.option_strings]
+    hints = []
+    for arg in unknown:
+        close = difflib.get_close_matches(arg.split("=", 1)[0], known, n=1, cutoff=0.75)
+        if close:
+            hints.append(f"{arg}: did you mean {close[0]}?")
+    return (f"unknown option(s) {' '.join(unknown)}"
+            + (f" ({'; '.join(hints)})" if hints else "")
+            + "; replicate takes --strict, --quiet, --progress=MODE, Hydra's options "
+              "(replicate --help) and KEY=VALUE overrides")
+
+
 USAGE = """usage: replicate experiment=NAME [key=value ...] [--strict] [--quiet]
                  [--progress=bar|plain|none]
        replicate -m experiment=NAME key=v1,v2 ...   (a sweep: multirun/NAME/OVERRIDES)
@@ -837,6 +885,9 @@ def main():
         print(USAGE)
     sys.argv = sys.argv[:1] + flag_overrides(sys.argv[1:])
     args = sys.argv[1:]
+    unknown = unknown_options(args)
+    if unknown:
+        _error(unknown)
 
     def terminate(signum, frame):
         raise Interrupted()

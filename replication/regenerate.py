@@ -357,6 +357,28 @@ def _run_scheduled(todo, blocks, *, jobs, expected, command_for, log_dir, echo, 
     return outcome
 
 
+def _why_stale(name, results, provenance, stale, by_themselves, blocks):
+    """Why ``name`` is to be recomputed, in a few words (``--dry-run``)."""
+    if name not in by_themselves:
+        return "depends on " + ", ".join(d for d in blocks[name].get("depends_on", [])
+                                         if d in stale)
+    result = read_result_or_none(results / name / "result.json")
+    if result is None:
+        return "no result"
+    had = result.get("provenance") or {}
+    changed = [what for key, what in (("config_sha256", "config"), ("code_sha256", "code"),
+                                      ("inputs_sha256", "inputs"))
+               if had.get(key) != provenance[name].get(key)]
+    if changed:
+        return " and ".join(changed) + " changed"
+    return "an experiment it depends on was recomputed by an interrupted run"
+
+
+def fmt_seconds(seconds):
+    """``123 s``, or ``unknown`` without a recorded time (:func:`expected_seconds`: 0)."""
+    return f"{seconds:.0f} s" if seconds else "unknown"
+
+
 def main(argv=None):
     """Regenerate results (cached), figures and REPORT.md."""
     try:
@@ -384,6 +406,10 @@ def _main(argv=None):
                         help="results folder (default results/); another folder gets its own "
                              "REPORT.md, and the runs still write the figures and data "
                              "their configs name")
+    parser.add_argument("--dry-run", action="store_true",
+                        help="list the experiments a run would recompute and why (config, "
+                             "code or inputs changed, no result, an experiment it depends "
+                             "on), then stop; runs and writes nothing")
     args = parser.parse_args(argv)
     if args.jobs < 1:
         print(f"error: --jobs={args.jobs}: expected at least 1", file=sys.stderr)
@@ -395,14 +421,6 @@ def _main(argv=None):
         return 2
 
     results = Path(args.results)
-    try:
-        results.mkdir(parents=True, exist_ok=True)
-    except OSError as error:
-        print(f"error: --results={results}: cannot make that folder "
-              f"({error.strerror or error})", file=sys.stderr)
-        return 2
-    cache_path = results / CACHE_FILE
-    cache = _read_json_object(cache_path)
     entries = experiment_entries()
     blocks = {name: block for _, name, block in entries}
     only = {name for name in (args.only or "").split(",") if name}
@@ -422,6 +440,15 @@ def _main(argv=None):
             print(f"error: --only: unknown experiment(s) {sorted(unknown)}; known: "
                   f"{sorted(blocks)}", file=sys.stderr)
         return 2
+    if not args.dry_run:
+        try:
+            results.mkdir(parents=True, exist_ok=True)
+        except OSError as error:
+            print(f"error: --results={results}: cannot make that folder "
+                  f"({error.strerror or error})", file=sys.stderr)
+            return 2
+    cache_path = results / CACHE_FILE
+    cache = _read_json_object(cache_path)
     start = time.perf_counter()
     configs = resolved_configs(list(blocks))
     provenance, keys = experiment_keys(entries, configs)
@@ -447,6 +474,14 @@ def _main(argv=None):
         else:
             todo.append(name)
     expected = expected_seconds(results, cache, blocks)
+    if args.dry_run:
+        for name in todo:
+            why = _why_stale(name, results, provenance, stale, by_themselves, blocks)
+            print(f"{name}: would run ({why}; last time {fmt_seconds(expected.get(name))})",
+                  flush=True)
+        print(f"{len(todo)} experiment(s) would run, then {', '.join(gathered) or 'none'} "
+              "(always) and REPORT.md; nothing was run or written (--dry-run)", flush=True)
+        return 0
     print(f"{len(todo)} experiment(s) to run, {args.jobs} at a time", flush=True)
     with mode_for("none" if args.quiet else args.progress):
         outcome = run_scheduled(todo, blocks, jobs=args.jobs, expected=expected,

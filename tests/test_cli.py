@@ -106,6 +106,7 @@ def test_bad_data_file_gives_one_line(tmp_path):
 
 def test_report_lists_every_reported_experiment(tmp_path):
     text = build_report(tmp_path)  # no results: every section says how to make it
+    assert f"from the results in `{tmp_path}/`" in text   # the folder it was built from
     for _, name, _ in experiment_entries():
         assert f"replicate experiment={name}" in text
 
@@ -122,6 +123,19 @@ def test_an_added_key_the_experiment_does_not_hold_is_noted_and_a_known_one_is_n
     # settings the code reads when given (cost_from_config's cost.start, cost.frames)
     assert {"start", "frames", "window"} <= optional_keys()
     assert unread_added_keys(overrides, defaults) == ["budgett", "hydrate", "cost.framez"]
+    # the settings merged from the code's *DEFAULTS dicts (motion.single.DEFAULTS, the
+    # segmentation's PYRAMID_DEFAULTS) are read too: no note, which was wrong for them
+    assert {"tukey_c", "refine_pixels", "level_iterations"} <= optional_keys()
+    assert unread_added_keys(["+method.tukey_c=0.2", "+method.pyramid.refine_pixels=9"],
+                             {"method": {}}) == []
+
+
+def test_a_setting_the_config_leaves_out_is_refused_with_the_plus_spelling(tmp_path):
+    done = run_cli("experiment=segment_multi", "method.pyramid.refine_pixels=20000",
+                   f"out={tmp_path / 'out'}")
+    assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
+    assert "a setting the code reads" in done.stderr
+    assert "+method.pyramid.refine_pixels=VALUE" in done.stderr
 
 
 def test_an_unknown_config_group_option_lists_the_options():
@@ -198,3 +212,10 @@ def test_help_names_the_suites_own_options():
     assert done.returncode == 0
     for option in ("--strict", "--quiet", "--progress=MODE", "docs/experiments.md"):
         assert option in done.stdout
+
+
+def test_an_unknown_option_is_one_line_with_the_close_one():
+    done = run_cli("experiment=fig08_mesh", "--strictt")
+    assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
+    assert done.stderr.startswith("error: unknown option(s) --strictt")
+    assert "did you mean --strict?" in done.stderr

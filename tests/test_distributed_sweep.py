@@ -171,7 +171,9 @@ def test_dask_settings_it_cannot_use_are_one_error_line(tmp_path, setting, messa
                    f"figure_dir={tmp_path / 'f'}/" + "${zoom}", setting)
     assert done.returncode == 2 and done.stderr.startswith("error: ")
     assert message in done.stderr and "Traceback" not in done.stderr
-    assert not list(tmp_path.rglob("result.json"))
+    # refused before Hydra's sweeper writes anything: no multirun.yaml that replicate-gather
+    # would read as the folder's last sweep
+    assert not (tmp_path / "sweep").exists() and not (tmp_path / "f").exists()
 
 
 def test_joblib_sweep_with_a_refused_job_runs_the_others_and_exits_2(tmp_path):

@@ -319,3 +319,31 @@ def test_moves_refuses_an_unknown_commit_in_one_line(capsys):
     assert moves.main(["no-such-commit"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: no-such-commit: not a commit") and err.count("\n") == 1
+
+
+def test_dry_run_says_why_each_experiment_would_run_and_writes_nothing(tmp_path, capsys):
+    """`replicate-all --dry-run` on a results folder of its own: one experiment without a
+    result, one whose stored config hash differs; a refused --only makes no folder."""
+    import json
+
+    from replication.regenerate import main
+    from replication.results import write_json_atomic
+
+    results = tmp_path / "res"
+    configs = resolved_configs(["fig08_mesh"])
+    provenance_now, _ = experiment_keys(
+        [e for e in experiment_entries() if e[1] == "fig08_mesh"], configs)
+    changed = dict(provenance_now["fig08_mesh"], config_sha256="old")
+    write_json_atomic(results / "fig08_mesh" / "result.json", {"provenance": changed})
+    before = sorted(p.relative_to(results) for p in results.rglob("*"))
+    assert main(["--dry-run", "--only", "fig08_mesh,cloth_reference",
+                 "--results", str(results)]) == 0
+    out = capsys.readouterr().out
+    assert "fig08_mesh: would run (config changed;" in out
+    assert "cloth_reference: would run (no result;" in out
+    assert "2 experiment(s) would run" in out and "nothing was run or written" in out
+    assert sorted(p.relative_to(results) for p in results.rglob("*")) == before
+    assert json.loads((results / "fig08_mesh" / "result.json").read_text())[
+        "provenance"]["config_sha256"] == "old"
+    assert main(["--only", "nope", "--results", str(tmp_path / "other")]) == 2
+    assert not (tmp_path / "other").exists()

@@ -151,40 +151,47 @@ class DaskLauncher(Launcher):
         self.config: Optional[DictConfig] = None
         self.task_function: Optional[TaskFunction] = None
         self.hydra_context: Optional[HydraContext] = None
+        self._remote = None
 
     def setup(self, *, hydra_context: HydraContext, task_function: TaskFunction,
               config: DictConfig) -> None:
         self.config = config
         self.task_function = task_function
         self.hydra_context = hydra_context
+        # settings it cannot use are refused here, before Hydra's sweeper writes the sweep
+        # folder's multirun.yaml (which replicate-gather reads as the last sweep)
+        self._remote = self._connect_remote() if self.address else None
+        if self._remote is None:
+            self._check_local()
 
-    def connect(self):
-        """``(client, cluster)``: a ``distributed.Client`` on the configured scheduler and
-        ``None``, or on a new local cluster and that cluster (to close after the sweep)."""
-        from distributed import Client, LocalCluster
+    def _connect_remote(self):
+        """A ``distributed.Client`` on the configured scheduler, or one error line."""
+        from distributed import Client
 
-        if self.address:
-            address = str(self.address)
-            if address.endswith(".json"):
-                if not Path(address).is_file():
-                    _refuse(f"hydra.launcher.address={address}: no such scheduler file; "
-                            "expected the file a scheduler wrote (dask scheduler "
-                            "--scheduler-file FILE) or an address tcp://HOST:PORT")
-                target = {"scheduler_file": address}
-            else:
-                target = {"address": address}
-            try:
-                return Client(**target, timeout=CONNECT_SECONDS), None
-            except ValueError as error:
-                _refuse(f"hydra.launcher.address={address}: not an address ({error}); "
-                        "expected tcp://HOST:PORT, a scheduler file (*.json), or null for "
-                        "a local cluster")
-            except (OSError, TimeoutError) as error:
-                _refuse(f"hydra.launcher.address={address}: no Dask scheduler answered "
-                        f"within {CONNECT_SECONDS} s ({type(error).__name__}: "
-                        f"{str(error).splitlines()[0] if str(error) else ''}); expected a "
-                        "running scheduler at tcp://HOST:PORT (or its scheduler file), or "
-                        "address=null for a local cluster")
+        address = str(self.address)
+        if address.endswith(".json"):
+            if not Path(address).is_file():
+                _refuse(f"hydra.launcher.address={address}: no such scheduler file; "
+                        "expected the file a scheduler wrote (dask scheduler "
+                        "--scheduler-file FILE) or an address tcp://HOST:PORT")
+            target = {"scheduler_file": address}
+        else:
+            target = {"address": address}
+        try:
+            return Client(**target, timeout=CONNECT_SECONDS)
+        except ValueError as error:
+            _refuse(f"hydra.launcher.address={address}: not an address ({error}); "
+                    "expected tcp://HOST:PORT, a scheduler file (*.json), or null for "
+                    "a local cluster")
+        except (OSError, TimeoutError) as error:
+            _refuse(f"hydra.launcher.address={address}: no Dask scheduler answered "
+                    f"within {CONNECT_SECONDS} s ({type(error).__name__}: "
+                    f"{str(error).splitlines()[0] if str(error) else ''}); expected a "
+                    "running scheduler at tcp://HOST:PORT (or its scheduler file), or "
+                    "address=null for a local cluster")
+
+    def _check_local(self):
+        """The local cluster's settings, or one error line."""
         if (isinstance(self.n_workers, bool) or not isinstance(self.n_workers, int)
                 or self.n_workers < 1):
             _refuse(f"hydra.launcher.n_workers={self.n_workers!r}: expected an integer >= 1 "
@@ -197,6 +204,15 @@ class DaskLauncher(Launcher):
             except (ValueError, TypeError):
                 _refuse(f"hydra.launcher.memory_limit={self.memory_limit!r}: not a size; "
                         "expected Dask's spelling (4GiB, 500MB), auto or null")
+
+    def connect(self):
+        """``(client, cluster)``: the client :meth:`setup` connected to the configured
+        scheduler and ``None``, or a client on a new local cluster and that cluster (to
+        close after the sweep)."""
+        from distributed import Client, LocalCluster
+
+        if self._remote is not None:
+            return self._remote, None
         options = {} if self.memory_limit is None else {"memory_limit": self.memory_limit}
         cluster = LocalCluster(n_workers=self.n_workers, threads_per_worker=1,
                                processes=True, host="127.0.0.1", dashboard_address=None,

@@ -444,6 +444,11 @@ def read_manifest_sequences(path, maker):
                 and isinstance(item.get("role"), str)):
             _fail(path, f"sequences.{name}", json.dumps(item)[:80],
                   "an object with 'path' and 'role' strings")
+        # a path relative to the working directory (the suite's own manifests), else to
+        # the manifest's folder (a user's folder, moved about as one piece)
+        beside = path.parent / item["path"]
+        if not Path(item["path"]).exists() and beside.exists():
+            item["path"] = str(beside)
     return sequences
 
 

@@ -85,6 +85,9 @@ def fmt(value, digits=4):
 def build_report(results_dir):
     """The text of REPORT.md from the results under ``results_dir``."""
     results_dir = Path(results_dir)
+    # the project's own results are named as the repository's readers see them
+    shown = ("results" if results_dir.resolve() == (PROJECT_ROOT / "results").resolve()
+             else str(results_dir))
     sections, summary, missing, failed = [], [], [], []
     for _, name, block in experiment_entries():
         result = read_result_or_none(results_dir / name)
@@ -101,14 +104,14 @@ def build_report(results_dir):
                             f"(`{block['section']}`: {type(error).__name__}: {error}).\n")
             continue
         footer = (f"\n_Made by `{command_line(result)}` in {result['wall_seconds']:.1f} s; "
-                  f"config in `results/{name}/result.json`._\n")
+                  f"config in `{shown}/{name}/result.json`._\n")
         sections.append(heading + "\n" + section.markdown.strip() + "\n" + footer)
         for row in section.summary:
             summary.append((row, name))
     lines = [
         "# Replication report: Louchet, Boccara, Crochemore and Provot (EA'95)",
         "",
-        "Written by `replicate-all` from the results in `results/`; do not edit by hand.",
+        f"Written by `replicate-all` from the results in `{shown}/`; do not edit by hand.",
         "Every number below comes from a run whose resolved config is stored beside it.",
         "",
         "## Summary",
@@ -118,7 +121,7 @@ def build_report(results_dir):
     ]
     for row, name in summary:
         lines.append(f"| {row.claim} | {row.paper} | {row.suite} | {row.tolerance} | "
-                     f"{row.verdict} | `replicate experiment={name}` |")
+                     f"{row.verdict} | `replicate experiment={name} force=true` |")
     if missing:
         lines += ["", "Not run yet: " + ", ".join(f"`{name}`" for name in missing) + "."]
     if failed:

@@ -176,3 +176,22 @@ def test_a_png_frame_over_the_pixel_limit_is_named_as_too_large(tmp_path, monkey
     with pytest.raises(InputError, match="found frames of 40 x 40 pixels; expected at most "
                                          "limits.max_frame_pixels=1000"):
         read_sequence(tmp_path)
+
+
+def test_a_manifest_path_is_found_beside_the_manifest(tmp_path, monkeypatch):
+    """A user's sequences folder names its sequences relative to itself; the suite's own
+    manifests name them relative to the repository (the working directory), which wins."""
+    from replication.motion.io import read_manifest_sequences
+
+    folder = tmp_path / "mine"
+    (folder / "seq").mkdir(parents=True)
+    (folder / "manifest.json").write_text(json.dumps(
+        {"sequences": {"a": {"path": "seq", "role": "accuracy"},
+                       "b": {"path": "gone", "role": "accuracy"}}}))
+    monkeypatch.chdir(tmp_path)
+    sequences = read_manifest_sequences(folder / "manifest.json", "motion_data")
+    assert sequences["a"]["path"] == str(folder / "seq")
+    assert sequences["b"]["path"] == "gone"   # left as given: its reader names it
+    (tmp_path / "seq").mkdir()
+    sequences = read_manifest_sequences(folder / "manifest.json", "motion_data")
+    assert sequences["a"]["path"] == "seq"

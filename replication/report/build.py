@@ -186,12 +186,12 @@ def _bound_lines(record, split):
     share = split["objective_seconds"] / split["run_seconds"]
     rest = sum(cpu.values()) - cpu[name] * (1.0 - share)
     return ["", f"Of `{name}`'s run time, {share:.0%} is spent inside the cost (the compiled "
-            f"kernel; {fmt(split['objective_seconds'], 3)} of {fmt(split['run_seconds'], 3)} "
+            f"kernel; {split['objective_seconds']:.0f} of {split['run_seconds']:.0f} "
             "s in its last run, its report section has the split per optimiser); the rest is "
             "the optimisers' own code (pymoo, cma, scipy, the paper EA's operators). Were "
-            f"that code to take no time at all, its {fmt(cpu[name], 4)} s of CPU would "
-            f"shrink to about {fmt(cpu[name] * share, 3)} s, and the regeneration would still use "
-            f"{fmt(rest, 4)} s of CPU: at least {fmt(rest / record['cpu_count'], 3)} s on "
+            f"that code to take no time at all, its {cpu[name]:.0f} s of CPU would "
+            f"shrink to about {cpu[name] * share:.0f} s, and the regeneration would still use "
+            f"{rest:.0f} s of CPU: at least {rest / record['cpu_count']:.0f} s on "
             f"{record['cpu_count']} CPUs."]
 
 

@@ -221,8 +221,8 @@ def _time_lines(summary):
              "| optimiser | run time (s) | in the cost (s) | share in the cost |",
              "|---|---|---|---|"]
     for name, (run, inside) in totals.items():
-        lines.append(f"| {name} | {fmt(run, 3)} | {fmt(inside, 3)} | {inside / run:.0%} |")
-    lines += [f"| all | {fmt(run_all, 3)} | {fmt(inside_all, 3)} | "
+        lines.append(f"| {name} | {run:.1f} | {inside:.1f} | {inside / run:.0%} |")
+    lines += [f"| all | {run_all:.1f} | {inside_all:.1f} | "
               f"{inside_all / run_all:.0%} |", ""]
     return lines
 

@@ -357,11 +357,14 @@ def _run_scheduled(todo, blocks, *, jobs, expected, command_for, log_dir, echo, 
     return outcome
 
 
-def _why_stale(name, results, provenance, stale, by_themselves, blocks):
+def _why_stale(name, results, provenance, stale, by_themselves, blocks, force):
     """Why ``name`` is to be recomputed, in a few words (``--dry-run``)."""
+    if force:
+        return "--force"
     if name not in by_themselves:
-        return "depends on " + ", ".join(d for d in blocks[name].get("depends_on", [])
-                                         if d in stale)
+        # a real run checks again once those have run (still_stale), and may skip it
+        return ("if what it reads changes: depends on "
+                + ", ".join(d for d in blocks[name].get("depends_on", []) if d in stale))
     result = read_result_or_none(results / name / "result.json")
     if result is None:
         return "no result"
@@ -371,6 +374,8 @@ def _why_stale(name, results, provenance, stale, by_themselves, blocks):
                if had.get(key) != provenance[name].get(key)]
     if changed:
         return " and ".join(changed) + " changed"
+    if had != provenance[name]:
+        return "its provenance record differs (an older result)"
     return "an experiment it depends on was recomputed by an interrupted run"
 
 
@@ -476,7 +481,8 @@ def _main(argv=None):
     expected = expected_seconds(results, cache, blocks)
     if args.dry_run:
         for name in todo:
-            why = _why_stale(name, results, provenance, stale, by_themselves, blocks)
+            why = _why_stale(name, results, provenance, stale, by_themselves, blocks,
+                             args.force)
             print(f"{name}: would run ({why}; last time {fmt_seconds(expected.get(name))})",
                   flush=True)
         print(f"{len(todo)} experiment(s) would run, then {', '.join(gathered) or 'none'} "

@@ -107,6 +107,7 @@ def test_bad_data_file_gives_one_line(tmp_path):
 def test_report_lists_every_reported_experiment(tmp_path):
     text = build_report(tmp_path)  # no results: every section says how to make it
     assert f"from the results in `{tmp_path}/`" in text   # the folder it was built from
+    assert f"`replicate experiment=fig08_mesh out={tmp_path}/fig08_mesh force=true`" in text
     for _, name, _ in experiment_entries():
         assert f"replicate experiment={name}" in text
 

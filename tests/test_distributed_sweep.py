@@ -125,8 +125,11 @@ def test_dask_sweep_on_a_running_cluster_gathers_to_the_serial_csv(tmp_path, ser
                                                                     dask_cluster):
     scheduler_file, address = dask_cluster
     folder = tmp_path / "sweep"
-    err = run_sweep(folder, "hydra/launcher=dask", f"hydra.launcher.address={scheduler_file}")
-    assert f"dask launcher: 3 jobs on {address}" in err
+    # in two batches: each launch connects again (the first one's client is closed)
+    err = run_sweep(folder, "hydra/launcher=dask", f"hydra.launcher.address={scheduler_file}",
+                    "hydra.sweeper.max_batch_size=2")
+    assert f"dask launcher: 2 jobs on {address}" in err
+    assert f"dask launcher: 1 jobs on {address}" in err
     assert gathered(folder) == serial
 
 

@@ -345,5 +345,8 @@ def test_dry_run_says_why_each_experiment_would_run_and_writes_nothing(tmp_path,
     assert sorted(p.relative_to(results) for p in results.rglob("*")) == before
     assert json.loads((results / "fig08_mesh" / "result.json").read_text())[
         "provenance"]["config_sha256"] == "old"
+    assert main(["--dry-run", "--force", "--only", "fig08_mesh",
+                 "--results", str(results)]) == 0
+    assert "fig08_mesh: would run (--force;" in capsys.readouterr().out
     assert main(["--only", "nope", "--results", str(tmp_path / "other")]) == 2
     assert not (tmp_path / "other").exists()

@@ -20,8 +20,8 @@ The jobs done, their rate and the time left show as the suite's other long loops
 (``progress=`` in the config, :mod:`replication.progress`).
 
 Hydra finds this class because it lives in the ``hydra_plugins`` namespace package; it
-imports every module there at start-up, so ``distributed`` is imported only in
-:meth:`DaskLauncher.launch`.
+imports every module there at start-up, so ``distributed`` is imported only when a sweep
+sets the launcher up (:meth:`DaskLauncher.setup`) or launches jobs.
 """
 
 import contextlib
@@ -151,7 +151,6 @@ class DaskLauncher(Launcher):
         self.config: Optional[DictConfig] = None
         self.task_function: Optional[TaskFunction] = None
         self.hydra_context: Optional[HydraContext] = None
-        self._remote = None
 
     def setup(self, *, hydra_context: HydraContext, task_function: TaskFunction,
               config: DictConfig) -> None:
@@ -159,9 +158,12 @@ class DaskLauncher(Launcher):
         self.task_function = task_function
         self.hydra_context = hydra_context
         # settings it cannot use are refused here, before Hydra's sweeper writes the sweep
-        # folder's multirun.yaml (which replicate-gather reads as the last sweep)
-        self._remote = self._connect_remote() if self.address else None
-        if self._remote is None:
+        # folder's multirun.yaml (which replicate-gather reads as the last sweep): a remote
+        # scheduler must answer now; each launch (a sweeper may launch several batches)
+        # connects again and closes its own client
+        if self.address:
+            self._connect_remote().close()
+        else:
             self._check_local()
 
     def _connect_remote(self):
@@ -206,13 +208,13 @@ class DaskLauncher(Launcher):
                         "expected Dask's spelling (4GiB, 500MB), auto or null")
 
     def connect(self):
-        """``(client, cluster)``: the client :meth:`setup` connected to the configured
-        scheduler and ``None``, or a client on a new local cluster and that cluster (to
-        close after the sweep)."""
+        """``(client, cluster)``: a ``distributed.Client`` on the configured scheduler and
+        ``None``, or on a new local cluster and that cluster (both closed after the
+        batch of jobs)."""
         from distributed import Client, LocalCluster
 
-        if self._remote is not None:
-            return self._remote, None
+        if self.address:
+            return self._connect_remote(), None
         options = {} if self.memory_limit is None else {"memory_limit": self.memory_limit}
         cluster = LocalCluster(n_workers=self.n_workers, threads_per_worker=1,
                                processes=True, host="127.0.0.1", dashboard_address=None,

@@ -89,12 +89,18 @@ def build_report(results_dir):
     shown = ("results" if results_dir.resolve() == (PROJECT_ROOT / "results").resolve()
              else str(results_dir))
     sections, summary, missing, failed = [], [], [], []
+
+    def rerun(name):
+        """What makes the result again where this report reads it."""
+        return "force=true" if shown == "results" else f"out={shown}/{name} force=true"
+
     for _, name, block in experiment_entries():
         result = read_result_or_none(results_dir / name)
         heading = f"## {block['title']}\n"
         if result is None:
             missing.append(name)
-            sections.append(f"{heading}\nNot run yet: `replicate experiment={name} force=true`.\n")
+            sections.append(f"{heading}\nNot run yet: "
+                            f"`replicate experiment={name} {rerun(name)}`.\n")
             continue
         try:
             section = _call_section(block["section"], result)
@@ -121,7 +127,7 @@ def build_report(results_dir):
     ]
     for row, name in summary:
         lines.append(f"| {row.claim} | {row.paper} | {row.suite} | {row.tolerance} | "
-                     f"{row.verdict} | `replicate experiment={name} force=true` |")
+                     f"{row.verdict} | `replicate experiment={name} {rerun(name)}` |")
     if missing:
         lines += ["", "Not run yet: " + ", ".join(f"`{name}`" for name in missing) + "."]
     if failed:

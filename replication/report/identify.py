@@ -205,13 +205,11 @@ def baselines_section(result):
 
 def _time_lines(summary):
     """Where the baselines' run time goes: inside the cost, or in the optimisers' own code."""
-    totals = {}
-    for by_opt in summary.values():
-        for name, s in by_opt.items():
-            if "objective_seconds" not in s:
-                return []
-            run, inside = totals.get(name, (0.0, 0.0))
-            totals[name] = (run + s["run_seconds"], inside + s["objective_seconds"])
+    from replication.experiments.bench.gather import time_split
+
+    totals = time_split(summary)
+    if not totals:
+        return []
     run_all = sum(run for run, _ in totals.values())
     inside_all = sum(inside for _, inside in totals.values())
     lines = ["Where the run time goes (all references and seeds; each run timed alone in its "

@@ -52,15 +52,27 @@ def gather_benchmarks(config, out):
     return {"metrics": metrics, "sources": sources, "goals": config["goals"]}
 
 
+def time_split(summary):
+    """``{optimiser: (run_seconds, objective_seconds)}`` summed over the references of a
+    study's ``summary``; ``None`` for a result made before the split was recorded."""
+    totals = {}
+    for by_opt in summary.values():
+        for name, s in by_opt.items():
+            if "objective_seconds" not in s:
+                return None
+            run, inside = totals.get(name, (0.0, 0.0))
+            totals[name] = (run + s["run_seconds"], inside + s["objective_seconds"])
+    return totals
+
+
 def _time_split(results_dir, name):
     """The runs' time of experiment ``name`` (a baselines study) and the part of it spent
     inside the cost, summed over references, optimisers and seeds; None without them."""
     path = results_dir / str(name) / "result.json"
     if name is None or not path.exists():
         return None
-    rows = [s for by_opt in read_result(path).get("summary", {}).values()
-            for s in by_opt.values()]
-    if not rows or any("objective_seconds" not in s for s in rows):
+    totals = time_split(read_result(path).get("summary", {}))
+    if not totals:
         return None
-    return {"experiment": name, "run_seconds": sum(s["run_seconds"] for s in rows),
-            "objective_seconds": sum(s["objective_seconds"] for s in rows)}
+    return {"experiment": name, "run_seconds": sum(run for run, _ in totals.values()),
+            "objective_seconds": sum(inside for _, inside in totals.values())}

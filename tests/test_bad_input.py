@@ -450,7 +450,9 @@ def test_replicate_all_treats_an_unreadable_result_as_missing(tmp_path, capsys, 
     stale = regenerate.stale_experiments(entries, tmp_path, provenance,
                                          {"fig08_mesh": "k"}, {})
     assert stale == {"fig08_mesh"}
-    assert "Not run yet: `replicate experiment=fig08_mesh force=true`" in build_report(tmp_path)
+    # the command that makes it again where this report reads it (a folder of its own)
+    assert (f"Not run yet: `replicate experiment=fig08_mesh out={tmp_path}/fig08_mesh "
+            "force=true`") in build_report(tmp_path)
     (tmp_path / regenerate.CACHE_FILE).write_bytes(
         content if isinstance(content, bytes) else content.encode())
     assert regenerate._read_json_object(tmp_path / regenerate.CACHE_FILE) == {}

@@ -379,7 +379,7 @@ def _why_stale(name, results, provenance, stale, by_themselves, blocks, force):
     return "an experiment it depends on was recomputed by an interrupted run"
 
 
-def fmt_seconds(seconds):
+def _seconds(seconds):
     """``123 s``, or ``unknown`` without a recorded time (:func:`expected_seconds`: 0)."""
     return f"{seconds:.0f} s" if seconds else "unknown"
 
@@ -483,7 +483,7 @@ def _main(argv=None):
         for name in todo:
             why = _why_stale(name, results, provenance, stale, by_themselves, blocks,
                              args.force)
-            print(f"{name}: would run ({why}; last time {fmt_seconds(expected.get(name))})",
+            print(f"{name}: would run ({why}; last time {_seconds(expected.get(name))})",
                   flush=True)
         print(f"{len(todo)} experiment(s) would run, then {', '.join(gathered) or 'none'} "
               "(always) and REPORT.md; nothing was run or written (--dry-run)", flush=True)

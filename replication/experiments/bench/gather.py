@@ -68,9 +68,9 @@ def time_split(summary):
 def _time_split(results_dir, name):
     """The runs' time of experiment ``name`` (a baselines study) and the part of it spent
     inside the cost, summed over references, optimisers and seeds; None without them."""
-    path = results_dir / str(name) / "result.json"
-    if name is None or not path.exists():
+    if name is None or not (results_dir / name / "result.json").exists():
         return None
+    path = results_dir / name / "result.json"
     totals = time_split(read_result(path).get("summary", {}))
     if not totals:
         return None

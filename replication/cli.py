@@ -468,32 +468,58 @@ def _run_task(cfg):
         raise
 
 
-def _close_keys(key, overrides):
-    """Keys of the chosen experiment's config spelt like ``key`` (dotted), best first."""
-    import difflib
-
+def _experiment_config(overrides):
+    """The chosen experiment's composed config (a dict) from ``overrides``
+    (``experiment=NAME``), or ``None`` (none chosen, or Hydra refuses it)."""
     from hydra import compose, initialize_config_dir
     from hydra.core.global_hydra import GlobalHydra
 
     chosen = [o for o in overrides if o.split("=", 1)[0].lstrip("+~") == "experiment"]
     if not chosen:
-        return []
+        return None
+    GlobalHydra.instance().clear()
+    try:
+        with initialize_config_dir(config_dir=CONFIG_DIR, version_base="1.3"):
+            return OmegaConf.to_container(compose(config_name="config",
+                                                  overrides=chosen[-1:]))
+    except Exception:  # noqa: BLE001  (a hint only: no hint rather than another error)
+        return None
+    finally:
+        GlobalHydra.instance().clear()
+
+
+def _close_keys(key, config):
+    """Keys of ``config`` (dotted) spelt like ``key``, best first."""
+    import difflib
 
     def dotted(node, prefix=""):
         for name, value in node.items():
             yield prefix + str(name)
             if isinstance(value, dict):
                 yield from dotted(value, f"{prefix}{name}.")
-    GlobalHydra.instance().clear()
-    try:
-        with initialize_config_dir(config_dir=CONFIG_DIR, version_base="1.3"):
-            config = OmegaConf.to_container(compose(config_name="config",
-                                                    overrides=chosen[-1:]))
-    except Exception:  # noqa: BLE001  (a hint only: no hint rather than another error)
-        return []
-    finally:
-        GlobalHydra.instance().clear()
-    return difflib.get_close_matches(key, list(dotted(config)), n=3, cutoff=0.75)
+    return difflib.get_close_matches(key, list(dotted(config or {})), n=3, cutoff=0.75)
+
+
+def may_be_read(key, config, optional=None):
+    """Whether the dotted ``key``, which ``config`` lacks, may be a setting the code reads
+    when given: its last name is one (``optional``, default :func:`optional_keys`) and each
+    of its parents is a block of ``config`` or, where ``config`` lacks it, itself a name the
+    code reads (a settings group such as ``method.pyramid``). ``hydra`` keys are not."""
+    optional = optional_keys() if optional is None else optional
+    parts = key.split(".")
+    if parts[0] == "hydra" or parts[-1] not in optional:
+        return False
+    node = config
+    for part in parts[:-1]:
+        if isinstance(node, dict) and part in node:
+            node = node[part]
+            if node is not None and not isinstance(node, dict):
+                return False   # a value, not a block of settings
+        elif part in optional:
+            node = {}
+        else:
+            return False
+    return True
 
 
 def _hydra_message(error, overrides=()):
@@ -502,11 +528,13 @@ def _hydra_message(error, overrides=()):
     text = str(error)
     if text.startswith("Could not override '"):
         key = text.split("'", 2)[1]
-        if key.split(".")[-1] in optional_keys():
+        config = _experiment_config(overrides)
+        close = _close_keys(key, config)
+        if config is not None and may_be_read(key, config):
             return (f"Could not override '{key}': not a key of this experiment's config, but "
                     f"a setting the code reads (docs/experiments.md): add it with "
-                    f"+{key}=VALUE")
-        close = _close_keys(key, overrides)
+                    f"+{key}=VALUE"
+                    + (f" (or did you mean {' or '.join(close)}?)" if close else ""))
         if close:
             return (f"Could not override '{key}': no such key; did you mean "
                     f"{' or '.join(close)}? (+{key}=VALUE would add it as a new key, which "
@@ -545,7 +573,9 @@ def optional_keys():
     """Settings a runner takes when given and defaults otherwise, which experiment configs
     may leave out (``cost.frames``, ``method.tukey_c``): the names the package reads with
     ``.get("NAME"``, and the keys of its module-level ``*DEFAULTS`` dicts (the settings
-    merged over a config's block, nested dicts included). Read from the sources once per
+    merged over a config's block, nested dicts included) and ``*GROUPS`` dicts (the blocks
+    of such settings, ``method.pyramid``). By name, not path: :func:`may_be_read` also
+    asks for the parents. Read from the sources once per
     process, and only when an override adds a key or names one the config lacks."""
     import ast
 
@@ -567,7 +597,7 @@ def optional_keys():
                 names.add(node.args[0].value)
         for node in tree.body:
             if (isinstance(node, ast.Assign) and isinstance(node.value, ast.Dict)
-                    and any(isinstance(t, ast.Name) and t.id.endswith("DEFAULTS")
+                    and any(isinstance(t, ast.Name) and t.id.endswith(("DEFAULTS", "GROUPS"))
                             for t in node.targets)):
                 names.update(dict_keys(node.value))
     return frozenset(names)
@@ -576,7 +606,7 @@ def optional_keys():
 def unread_added_keys(overrides, defaults, optional=None):
     """The keys that ``+KEY=VALUE`` (or ``++KEY=VALUE``) overrides add, which neither the
     experiment's config (``defaults``) holds nor the package reads as an optional setting
-    (``optional``, default :func:`optional_keys`, by the key's last name): Hydra accepts
+    (:func:`may_be_read`, with ``optional``): Hydra accepts
     any new key, and a runner ignores what it does not read, so a misspelt ``+budgett=300``
     would change nothing. Config groups (``+smoke=``) and ``hydra`` keys are left out."""
     from hydra.core.override_parser.overrides_parser import OverridesParser
@@ -594,10 +624,8 @@ def unread_added_keys(overrides, defaults, optional=None):
             if not known:
                 break
             node = node[part]
-        if not known:
-            optional = optional_keys() if optional is None else optional
-            if key.split(".")[-1] not in optional:
-                unread.append(key)
+        if not known and not may_be_read(key, defaults, optional):
+            unread.append(key)
     return unread
 
 
@@ -834,25 +862,69 @@ def flag_overrides(args):
             replaced.append("progress=none")
         elif arg.startswith("--progress="):
             replaced.append("progress=" + arg.split("=", 1)[1])
-        elif arg == "--progress" and args:
+        elif arg == "--progress" and args and not args[0].startswith("-") and (
+                "=" not in args[0]):
             replaced.append("progress=" + args.pop(0))
         else:
             replaced.append(arg)
     return replaced
 
 
-def unknown_options(args):
-    """One line naming the options of ``args`` that neither the suite nor Hydra knows (Hydra's
-    argparse would print its whole usage), or ``None``."""
-    import difflib
-
+def _hydra_parser():
+    """Hydra's argument parser, raising :class:`ValueError` with argparse's one-line message
+    where argparse would print its whole usage and exit."""
     from hydra._internal.utils import get_args_parser
 
     parser = get_args_parser()
-    _, unknown = parser.parse_known_args(args)
-    unknown = [arg for arg in unknown if arg.startswith("-")]
+    parser.exit_on_error = False
+
+    def refuse(message):
+        raise ValueError(message)
+    parser.error = refuse
+    return parser
+
+
+def expand_abbreviations(args):
+    """``args`` with each abbreviation of one of Hydra's long options (``--mult``, which
+    argparse takes for ``--multirun``) spelt out, so that a sweep is seen as one."""
+    parser = _hydra_parser()
+    options = [option for action in parser._actions for option in action.option_strings
+               if option.startswith("--")]
+    expanded = []
+    for arg in args:
+        name, equals, value = arg.partition("=")
+        matches = [option for option in options if option.startswith(name)]
+        if (name.startswith("--") and len(name) > 2 and name not in options
+                and len(matches) == 1):
+            arg = matches[0] + equals + value
+        expanded.append(arg)
+    return expanded
+
+
+def unknown_options(args):
+    """One line naming the options of ``args`` that neither the suite nor Hydra knows, or
+    that Hydra's argparse refuses (a bad value, an ambiguous abbreviation): argparse would
+    print its whole usage. ``None`` when all are known."""
+    import argparse
+    import difflib
+
+    tail = ("; replicate takes --strict, --quiet, --progress=MODE, Hydra's options "
+            "(replicate --help) and KEY=VALUE overrides")
+    if "--progress" in args:   # flag_overrides took every --progress followed by a value
+        return "--progress needs a value: --progress=bar|plain|none" + tail
+    parser = _hydra_parser()
+    try:
+        _, unknown = parser.parse_known_args(args)
+    except (argparse.ArgumentError, ValueError) as error:
+        return f"{error}" + tail
     if not unknown:
         return None
+    stray = [arg for arg in unknown if not arg.startswith("-")]
+    unknown = [arg for arg in unknown if arg.startswith("-")]
+    if stray and not unknown:   # argparse takes one run of overrides (a=1 -m b=2)
+        return (f"{' '.join(stray)}: overrides split by one of Hydra's options; give them "
+                "together, before or after the options (replicate -m KEY=VALUE ..., "
+                "replicate KEY=VALUE ... --cfg job; --strict and --quiet count as overrides)")
     known = ["--strict", "--quiet", "--progress"] + [
         option for action in parser._actions for option in action.option_strings]
     hints = []
@@ -861,9 +933,7 @@ def unknown_options(args):
         if close:
             hints.append(f"{arg}: did you mean {close[0]}?")
     return (f"unknown option(s) {' '.join(unknown)}"
-            + (f" ({'; '.join(hints)})" if hints else "")
-            + "; replicate takes --strict, --quiet, --progress=MODE, Hydra's options "
-              "(replicate --help) and KEY=VALUE overrides")
+            + (f" ({'; '.join(hints)})" if hints else "") + tail)
 
 
 USAGE = """usage: replicate experiment=NAME [key=value ...] [--strict] [--quiet]
@@ -883,7 +953,7 @@ def main():
     """Console-script entry point."""
     if {"--help", "-h"} & set(sys.argv[1:]):
         print(USAGE)
-    sys.argv = sys.argv[:1] + flag_overrides(sys.argv[1:])
+    sys.argv = sys.argv[:1] + expand_abbreviations(flag_overrides(sys.argv[1:]))
     args = sys.argv[1:]
     unknown = unknown_options(args)
     if unknown:

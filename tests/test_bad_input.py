@@ -241,6 +241,14 @@ CONFIG_CASES = [
     ("fig08_mesh", ["foo=1"], "Could not override 'foo'"),
     ("cloth_identify", ["data.pth=x.npz"],
      "Could not override 'data.pth': no such key; did you mean data.path?"),
+    # a typo gets "did you mean", not the advice to add it with + (a setting's name
+    # elsewhere: method.sigma, hydra's launcher keys); an optional setting gets both
+    ("motion_single", ["mehtod.sigma=2.0"],
+     "Could not override 'mehtod.sigma': no such key; did you mean method.sigma?"),
+    ("motion_single", ["hydra.launcher.workers=2"], "Could not override 'hydra.launcher"),
+    ("cloth_identify", ["cost.frames=20"],
+     "add it with +cost.frames=VALUE (or did you mean cost.frame?)"),
+    ("motion_single", ["method.pyramid.refine_pixels=9"], "did you mean method.refine_pixels?"),
     ("fig08_mesh", ["limits.max_seconds=-1"], "limits.max_seconds=-1: expected a number > 0"),
     ("fig08_mesh", ["+limits.foo=1"], "limits.foo: unknown limit"),
     ("fig08_mesh", ["data.path=''"], "data.path='': expected a file or folder path"),

@@ -129,6 +129,11 @@ def test_an_added_key_the_experiment_does_not_hold_is_noted_and_a_known_one_is_n
     assert {"tukey_c", "refine_pixels", "level_iterations"} <= optional_keys()
     assert unread_added_keys(["+method.tukey_c=0.2", "+method.pyramid.refine_pixels=9"],
                              {"method": {}}) == []
+    # by path, not by last name alone: a misspelt block, a setting under a value, and the
+    # hydra block are not settings the code reads
+    assert unread_added_keys(["+mehtod.tukey_c=0.2", "+budget.tukey_c=1"],
+                             {"method": {}, "budget": 3}) == ["mehtod.tukey_c",
+                                                              "budget.tukey_c"]
 
 
 def test_a_setting_the_config_leaves_out_is_refused_with_the_plus_spelling(tmp_path):
@@ -213,6 +218,29 @@ def test_help_names_the_suites_own_options():
     assert done.returncode == 0
     for option in ("--strict", "--quiet", "--progress=MODE", "docs/experiments.md"):
         assert option in done.stdout
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--cfg", "jobs"], "argument --cfg/-c: invalid choice: 'jobs'"),
+    (["--info", "experiment=fig08_mesh"], "argument --info/-i: invalid choice"),
+    (["--conf", "x"], "ambiguous option: --conf could match"),
+    (["-p"], "argument --package/-p: expected one argument"),
+    (["--progress"], "--progress needs a value"),
+    (["-m", "seed=0,1"], "seed=0,1: overrides split by one of Hydra's options"),
+])
+def test_options_argparse_refuses_are_one_line(tmp_path, args, message):
+    done = run_cli("experiment=fig08_mesh", *args, cwd=tmp_path)
+    assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
+    assert done.stderr.startswith("error: " + message), done.stderr
+    assert os.listdir(tmp_path) == []
+
+
+def test_an_abbreviated_multirun_is_a_sweep(tmp_path):
+    # argparse takes --mult for --multirun: it gets the sweep's checks (a fixed out)
+    done = run_cli("--mult", "experiment=fig08_mesh", f"out={tmp_path / 'o'}", "seed=0,1",
+                   cwd=tmp_path)
+    assert done.returncode == 2 and "in a sweep: every job would write" in done.stderr
+    assert os.listdir(tmp_path) == []
 
 
 def test_an_unknown_option_is_one_line_with_the_close_one():

@@ -296,17 +296,28 @@ def shared_costs(cost, x, y, r, *, coefficient, area_unit):
     return cost + coefficient * (area * worse).sum(axis=1) / area_unit
 
 
-@numba.njit(cache=True)
-def _project(pop, gx, gy, gt, gnorm, used, damping, cap, uniforms):
-    """Damped Kaczmarz projections of ``(xi, eta)`` onto the IRC lines of the disc's
-    pixels, visited in the random order drawn from ``uniforms`` (N, max_pixels)."""
-    n_pairs, height, width = gx.shape
-    out = pop.copy()
+@numba.njit(cache=True, nogil=True)
+def _disc_cells(pop, used):
+    """Per individual, the pixels of its disc used in some frame pair, as ``(pair, row,
+    col)`` rows of one array, and where each individual's rows start (N + 1 offsets)."""
+    n_pairs, height, width = used.shape
+    starts = np.zeros(pop.shape[0] + 1, dtype=np.int64)
     for i in range(pop.shape[0]):
-        x, y, r, omega = pop[i, 0], pop[i, 1], pop[i, 2], pop[i, 5]
+        x, y, r = pop[i, 0], pop[i, 1], pop[i, 2]
         row0, row1 = max(0, int(math.floor(y - r))), min(height - 1, int(math.ceil(y + r)))
-        cells = np.empty((n_pairs * (row1 - row0 + 1) * (int(2 * r) + 3), 3), dtype=np.int64)
         m = 0
+        for row in range(row0, row1 + 1):
+            col0, col1 = _row_span(row, x, y, r, width)
+            for p in range(n_pairs):
+                for col in range(col0, col1 + 1):
+                    if used[p, row, col]:
+                        m += 1
+        starts[i + 1] = starts[i] + m
+    cells = np.empty((starts[-1], 3), dtype=np.int64)
+    for i in range(pop.shape[0]):
+        x, y, r = pop[i, 0], pop[i, 1], pop[i, 2]
+        row0, row1 = max(0, int(math.floor(y - r))), min(height - 1, int(math.ceil(y + r)))
+        m = starts[i]
         for row in range(row0, row1 + 1):
             col0, col1 = _row_span(row, x, y, r, width)
             for p in range(n_pairs):
@@ -314,13 +325,26 @@ def _project(pop, gx, gy, gt, gnorm, used, damping, cap, uniforms):
                     if used[p, row, col]:
                         cells[m, 0], cells[m, 1], cells[m, 2] = p, row, col
                         m += 1
+    return cells, starts
+
+
+@numba.njit(cache=True, nogil=True)
+def _project(pop, cells, starts, gx, gy, gt, gnorm, damping, cap, uniforms, width):
+    """Damped Kaczmarz projections of ``(xi, eta)`` onto the IRC lines of the disc's
+    pixels (``cells[starts[i]:starts[i + 1]]``), visited in the random order drawn from
+    ``uniforms``: individual ``i``'s ``k``-th swap uses ``uniforms[i, k % width]``."""
+    out = pop.copy()
+    for i in range(pop.shape[0]):
+        omega = pop[i, 5]
+        first, m = starts[i], starts[i + 1] - starts[i]
         order = np.arange(m)
         for k in range(m - 1, 0, -1):      # Fisher-Yates with the given uniforms
-            j = int(uniforms[i, k % uniforms.shape[1]] * (k + 1))
+            j = int(uniforms[i, k % width] * (k + 1))
             order[k], order[j] = order[j], order[k]
         xi, eta = out[i, 3], out[i, 4]
         for k in range(m):
-            p, row, col = cells[order[k], 0], cells[order[k], 1], cells[order[k], 2]
+            cell = first + order[k]
+            p, row, col = cells[cell, 0], cells[cell, 1], cells[cell, 2]
             a, b = gx[p, row, col], gy[p, row, col]
             residual = -a * (row - eta) + b * (col - xi) + gt[p, row, col] / omega
             g = gnorm[p, row, col]
@@ -332,6 +356,27 @@ def _project(pop, gx, gy, gt, gnorm, used, damping, cap, uniforms):
             eta -= step * a
         out[i, 3], out[i, 4] = xi, eta
     return out
+
+
+def _row_uniforms(rng, width, needed):
+    """The uniforms of ``rng.random((len(needed), width))`` that are read: the first
+    ``needed[i]`` of row ``i``. The rest of each row is skipped, not drawn, where the
+    bit generator can jump ahead (PCG64's ``advance``); ``rng`` is left in the same state
+    as after the full draw, so the run's later draws are unchanged."""
+    generator = rng.bit_generator
+    if not hasattr(generator, "advance"):
+        return rng.random((len(needed), width))
+    # advance() drops a half-used 32-bit draw that random() would have kept: restore it
+    state = generator.state
+    buffered = (state.get("has_uint32"), state.get("uinteger"))
+    rows = np.zeros((len(needed), max(1, int(max(needed, default=1)))))
+    for i, count in enumerate(needed):
+        rows[i, :count] = rng.random(count)
+        generator.advance(width - count)
+    state = generator.state
+    state["has_uint32"], state["uinteger"] = buffered
+    generator.state = state
+    return rows
 
 
 def project_centres(pop, data, rng, *, damping, cap):
@@ -352,10 +397,15 @@ def project_centres(pop, data, rng, *, damping, cap):
     -------
     (N, 6) ndarray
     """
-    max_pixels = max(1, int(np.ceil(np.pi * pop[:, 2].max() ** 2)) * data.gx.shape[0] + 1)
-    uniforms = rng.random((pop.shape[0], max_pixels))
-    return _project(np.ascontiguousarray(pop, dtype=np.float64), data.gx, data.gy, data.gt,
-                    data.gnorm, data.used, float(damping), float(cap), uniforms)
+    pop = np.ascontiguousarray(pop, dtype=np.float64)
+    # the visiting orders are drawn as rows of one uniform array this wide (the runs'
+    # random streams are defined by it); only each disc's pixel count of a row is read
+    width = max(1, int(np.ceil(np.pi * pop[:, 2].max() ** 2)) * data.gx.shape[0] + 1)
+    cells, starts = _disc_cells(pop, data.used)
+    needed = np.minimum(np.diff(starts), width).tolist()
+    uniforms = _row_uniforms(rng, width, needed)
+    return _project(pop, cells, starts, data.gx, data.gy, data.gt, data.gnorm,
+                    float(damping), float(cap), uniforms, width)
 
 
 def check_settings(settings):

@@ -187,13 +187,14 @@ def _bound_lines(record, split):
         return []
     cpu = record.get("cpu_seconds", {})
     name = split["experiment"]
-    if name not in cpu or not split["run_seconds"]:
+    if name not in cpu or not split.get("run_cpu_seconds"):
         return []
-    share = split["objective_seconds"] / split["run_seconds"]
+    share = split["objective_cpu_seconds"] / split["run_cpu_seconds"]
     rest = sum(cpu.values()) - cpu[name] * (1.0 - share)
-    return ["", f"Of `{name}`'s run time, {share:.0%} is spent inside the cost (the compiled "
-            f"kernel; {split['objective_seconds']:.0f} of {split['run_seconds']:.0f} "
-            "s in its last run, its report section has the split per optimiser); the rest is "
+    return ["", f"Of `{name}`'s runs' CPU time, {share:.0%} is spent inside the cost (the "
+            f"compiled kernel; {split['objective_cpu_seconds']:.0f} of "
+            f"{split['run_cpu_seconds']:.0f} s in its last run, its report section has the "
+            "split per optimiser); the rest is "
             "the optimisers' own code (pymoo, cma, scipy, the paper EA's operators). Were "
             f"that code to take no time at all, its {cpu[name]:.0f} s of CPU would "
             f"shrink to about {cpu[name] * share:.0f} s, and the regeneration would still use "

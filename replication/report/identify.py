@@ -212,11 +212,11 @@ def _time_lines(summary):
         return []
     run_all = sum(run for run, _ in totals.values())
     inside_all = sum(inside for _, inside in totals.values())
-    lines = ["Where the run time goes (all references and seeds; each run timed alone in its "
-             "worker process, so a busy machine inflates both columns alike): the cost is "
+    lines = ["Where the run time goes (all references and seeds; CPU time of each run in its "
+             "worker process, which other work on the machine does not inflate): the cost is "
              "the compiled kernel every optimiser calls; the rest is the optimiser's own code "
              "(pymoo's and cma's bookkeeping, scipy, the paper EA's operators).", "",
-             "| optimiser | run time (s) | in the cost (s) | share in the cost |",
+             "| optimiser | run CPU time (s) | in the cost (s) | share in the cost |",
              "|---|---|---|---|"]
     for name, (run, inside) in totals.items():
         lines.append(f"| {name} | {run:.1f} | {inside:.1f} | {inside / run:.0%} |")

@@ -53,26 +53,29 @@ def gather_benchmarks(config, out):
 
 
 def time_split(summary):
-    """``{optimiser: (run_seconds, objective_seconds)}`` summed over the references of a
-    study's ``summary``; ``None`` for a result made before the split was recorded."""
+    """``{optimiser: (run_cpu_seconds, objective_cpu_seconds)}`` summed over the references
+    of a study's ``summary``; ``None`` for a result made before the split was recorded in
+    CPU time."""
     totals = {}
     for by_opt in summary.values():
         for name, s in by_opt.items():
-            if "objective_seconds" not in s:
+            if "objective_cpu_seconds" not in s:
                 return None
             run, inside = totals.get(name, (0.0, 0.0))
-            totals[name] = (run + s["run_seconds"], inside + s["objective_seconds"])
+            totals[name] = (run + s["run_cpu_seconds"], inside + s["objective_cpu_seconds"])
     return totals
 
 
 def _time_split(results_dir, name):
-    """The runs' time of experiment ``name`` (a baselines study) and the part of it spent
-    inside the cost, summed over references, optimisers and seeds; None without them."""
+    """The runs' CPU time of experiment ``name`` (a baselines study) and the part of it
+    spent inside the cost, summed over references, optimisers and seeds; None without
+    them."""
     if name is None or not (results_dir / name / "result.json").exists():
         return None
     path = results_dir / name / "result.json"
     totals = time_split(read_result(path).get("summary", {}))
     if not totals:
         return None
-    return {"experiment": name, "run_seconds": sum(run for run, _ in totals.values()),
-            "objective_seconds": sum(inside for _, inside in totals.values())}
+    return {"experiment": name,
+            "run_cpu_seconds": sum(run for run, _ in totals.values()),
+            "objective_cpu_seconds": sum(inside for _, inside in totals.values())}

@@ -449,6 +449,11 @@ def read_manifest_sequences(path, maker):
         beside = path.parent / item["path"]
         if not Path(item["path"]).exists() and beside.exists():
             item["path"] = str(beside)
+        elif (beside.exists() and not Path(item["path"]).is_absolute()
+              and not beside.samefile(item["path"])):
+            _note(path, f"sequence {name}: {item['path']} is read from the working "
+                  f"directory, not {beside} beside the manifest (give an absolute path, or "
+                  "run from the manifest's folder, to read that one)")
     return sequences
 
 

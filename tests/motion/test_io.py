@@ -178,9 +178,10 @@ def test_a_png_frame_over_the_pixel_limit_is_named_as_too_large(tmp_path, monkey
         read_sequence(tmp_path)
 
 
-def test_a_manifest_path_is_found_beside_the_manifest(tmp_path, monkeypatch):
+def test_a_manifest_path_is_found_beside_the_manifest(tmp_path, monkeypatch, capsys):
     """A user's sequences folder names its sequences relative to itself; the suite's own
-    manifests name them relative to the repository (the working directory), which wins."""
+    manifests name them relative to the repository (the working directory), which wins,
+    with a note when the manifest's folder has another file of that name."""
     from replication.motion.io import read_manifest_sequences
 
     folder = tmp_path / "mine"
@@ -192,6 +193,12 @@ def test_a_manifest_path_is_found_beside_the_manifest(tmp_path, monkeypatch):
     sequences = read_manifest_sequences(folder / "manifest.json", "motion_data")
     assert sequences["a"]["path"] == str(folder / "seq")
     assert sequences["b"]["path"] == "gone"   # left as given: its reader names it
+    assert capsys.readouterr().err == ""
     (tmp_path / "seq").mkdir()
     sequences = read_manifest_sequences(folder / "manifest.json", "motion_data")
     assert sequences["a"]["path"] == "seq"
+    assert f"seq is read from the working directory, not {folder / 'seq'}" in (
+        capsys.readouterr().err)
+    monkeypatch.chdir(folder)   # the same file both ways: no note
+    read_manifest_sequences("manifest.json", "motion_data")
+    assert capsys.readouterr().err == ""

@@ -951,9 +951,9 @@ result.json: docs/results.md. Hydra's own help follows.
 
 def main():
     """Console-script entry point."""
+    sys.argv = sys.argv[:1] + expand_abbreviations(flag_overrides(sys.argv[1:]))
     if {"--help", "-h"} & set(sys.argv[1:]):
         print(USAGE)
-    sys.argv = sys.argv[:1] + expand_abbreviations(flag_overrides(sys.argv[1:]))
     args = sys.argv[1:]
     unknown = unknown_options(args)
     if unknown:

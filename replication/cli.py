@@ -14,6 +14,7 @@ written; ``limits.max_seconds`` bounds the run's time.
 
 from __future__ import annotations
 
+import ast
 import errno
 import functools
 import importlib
@@ -468,28 +469,151 @@ def _run_task(cfg):
         raise
 
 
-def _experiment_config(overrides):
-    """The chosen experiment's composed config (a dict) from ``overrides``
-    (``experiment=NAME``), or ``None`` (none chosen, or Hydra refuses it)."""
+def _experiment_config(overrides, hydra=False):
+    """The chosen experiment's composed config (a dict; with ``hydra``, Hydra's own block
+    too) from ``overrides`` (``experiment=NAME``, the first of a sweep's), or ``None``
+    (none chosen, or Hydra refuses it)."""
     from hydra import compose, initialize_config_dir
     from hydra.core.global_hydra import GlobalHydra
 
-    chosen = [o for o in overrides if o.split("=", 1)[0].lstrip("+~") == "experiment"]
+    chosen = [o.split("=", 1)[1].split(",")[0] for o in overrides
+              if "=" in o and o.split("=", 1)[0].lstrip("+~") == "experiment"]
     if not chosen:
         return None
     GlobalHydra.instance().clear()
     try:
         with initialize_config_dir(config_dir=CONFIG_DIR, version_base="1.3"):
-            return OmegaConf.to_container(compose(config_name="config",
-                                                  overrides=chosen[-1:]))
+            return OmegaConf.to_container(compose(
+                config_name="config", overrides=[f"experiment={chosen[-1]}"],
+                return_hydra_config=hydra))
     except Exception:  # noqa: BLE001  (a hint only: no hint rather than another error)
         return None
     finally:
         GlobalHydra.instance().clear()
 
 
-def _close_keys(key, config):
-    """Keys of ``config`` (dotted) spelt like ``key``, best first."""
+@functools.lru_cache(maxsize=16)
+def code_settings(runner):
+    """What the code behind ``runner`` (``"module:function"``, the modules it imports,
+    :func:`replication.provenance.module_closure`) reads of a config, from its sources:
+
+    - ``names``: ``(block, NAME)`` of each ``BLOCK.get("NAME")`` or ``.pop("NAME")``
+      (the block as the code names it: ``cost_cfg``, ``config["cost"]``,
+      ``config.get("data")``);
+    - ``groups``: ``{group: settings}`` of its ``*GROUPS`` dicts (a block of groups,
+      ``method.pyramid``, each merged over its own defaults);
+    - ``named``: ``{name: settings}`` of its ``NAME_DEFAULTS`` dicts (block ``name``);
+    - ``plain``: its ``DEFAULTS`` dicts (merged over a block holding some of their keys).
+    """
+    from replication.provenance import PACKAGE_DIR, module_closure, runner_parts
+
+    # the definitions the runner reaches in its own module, and the modules they import
+    segments, modules = runner_parts(runner)
+    sources = [(None, ast.parse("\n".join(segments)))] + [
+        (path, ast.parse(path.read_text())) for path in module_closure(modules)]
+    names, groups, named, plain = set(), {}, {}, []
+    for path, tree in sources:
+        for node in ast.walk(tree):
+            if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+                    and node.func.attr in ("get", "pop") and node.args
+                    and isinstance(node.args[0], ast.Constant)
+                    and isinstance(node.args[0].value, str)):
+                names.add((_receiver(node.func.value), node.args[0].value))
+        variables = [t.id for node in tree.body if isinstance(node, ast.Assign)
+                     for t in node.targets if isinstance(t, ast.Name)
+                     and t.id.endswith(("DEFAULTS", "GROUPS"))]
+        if not variables or path is None:
+            continue
+        parts = path.relative_to(PACKAGE_DIR.parent).with_suffix("").parts
+        loaded = importlib.import_module(".".join(p for p in parts if p != "__init__"))
+        for variable in variables:
+            value = getattr(loaded, variable)
+            if not isinstance(value, dict):
+                continue
+            if variable.endswith("GROUPS"):
+                groups.update({k: v for k, v in value.items() if isinstance(v, dict)})
+            elif variable == "DEFAULTS":
+                plain.append(value)
+            else:
+                named[variable[:-len("_DEFAULTS")].lower()] = value
+    return frozenset(names), groups, named, plain
+
+
+def _receiver(node):
+    """The name of the block a ``.get``/``.pop`` reads from: ``cost`` for ``cost``,
+    ``config["cost"]``, ``config.get("cost")`` and ``(config.get("cost") or {})``."""
+    if isinstance(node, ast.BoolOp):
+        node = node.values[0]
+    if isinstance(node, ast.Subscript) and isinstance(node.slice, ast.Constant):
+        return str(node.slice.value)
+    if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+            and node.func.attr == "get" and node.args
+            and isinstance(node.args[0], ast.Constant)):
+        return str(node.args[0].value)
+    if isinstance(node, ast.Name):
+        return node.id
+    if isinstance(node, ast.Attribute):
+        return node.attr
+    return ""
+
+
+def _reads(settings, block, name):
+    """Whether the code reads ``name`` from a block called ``block`` (``None``: the config
+    itself), by how it names the block (``cost``, ``cost_cfg``; ``config``, ``cfg``)."""
+    def matches(receiver):
+        if block is None:
+            return receiver in ("config", "cfg")
+        return receiver == block or receiver.startswith(block + "_")
+    return any(key == name and matches(receiver) for receiver, key in settings[0])
+
+
+def _settings_block(key, config, settings):
+    """Where ``key``'s parents lead in ``config``: ``(block, defaults)``, the block (a dict,
+    ``{}`` where the config leaves it out but the code reads it) and the settings dicts the
+    code merges it over; ``None`` when a parent is neither in the config nor a block the
+    code reads, or is a value."""
+    _, groups, named, plain = settings
+    node, defaults, parent = config, [], None
+    for part in key.split(".")[:-1]:
+        inner = [d[part] for d in defaults if isinstance(d.get(part), dict)]
+        inner += [named[part]] if part in named else []
+        if not defaults and part in groups:   # a block of groups, not of settings
+            inner.append(groups[part])
+        if isinstance(node, dict) and part in node:
+            child = node[part]
+            if child is not None and not isinstance(child, dict):
+                return None
+            node = child or {}
+            inner += [d for d in plain if node and set(node) <= set(d)]
+        elif inner and (part in groups or _reads(settings, parent, part)):
+            node = {}
+        else:
+            return None
+        defaults, parent = inner, part
+    return node, defaults
+
+
+def may_be_read(key, config, settings):
+    """Whether the dotted ``key``, which ``config`` lacks, may be a setting the code reads
+    (``settings``: :func:`code_settings` of the experiment's runner): ``"defaults"`` when
+    it is a key of the settings dicts its block is merged over, ``"name"`` when its block
+    has none and the code reads the name with ``.get``/``.pop`` from a block of that name
+    (:func:`_reads`: a weaker sign), else ``None``. ``hydra`` keys are not settings of
+    the experiment."""
+    found = None if key.split(".")[0] == "hydra" else _settings_block(key, config, settings)
+    if found is None:
+        return None
+    leaf, (_, defaults) = key.split(".")[-1], found
+    if defaults:
+        return "defaults" if any(leaf in d for d in defaults) else None
+    parents = key.split(".")[:-1]
+    return "name" if _reads(settings, parents[-1] if parents else None, leaf) else None
+
+
+def _close_keys(key, config, settings=None):
+    """Keys spelt like ``key`` (dotted), best first: in its block (the config's keys and
+    the settings the code merges the block over), or anywhere in ``config`` when its
+    block is neither in the config nor read by the code (a misspelt block)."""
     import difflib
 
     def dotted(node, prefix=""):
@@ -497,29 +621,63 @@ def _close_keys(key, config):
             yield prefix + str(name)
             if isinstance(value, dict):
                 yield from dotted(value, f"{prefix}{name}.")
-    return difflib.get_close_matches(key, list(dotted(config or {})), n=3, cutoff=0.75)
-
-
-def may_be_read(key, config, optional=None):
-    """Whether the dotted ``key``, which ``config`` lacks, may be a setting the code reads
-    when given: its last name is one (``optional``, default :func:`optional_keys`) and each
-    of its parents is a block of ``config`` or, where ``config`` lacks it, itself a name the
-    code reads (a settings group such as ``method.pyramid``). ``hydra`` keys are not."""
-    optional = optional_keys() if optional is None else optional
     parts = key.split(".")
-    if parts[0] == "hydra" or parts[-1] not in optional:
-        return False
+    found = _settings_block(key, config or {}, settings) if settings else None
+    if found is not None:
+        block, defaults = found
+        candidates = {*block, *(k for d in defaults for k in d)} - {parts[-1]}
+        stem = parts[-1][:max(4, len(parts[-1]) - 1)]
+        candidates = {c for c in candidates if not str(c).startswith("_")}
+        close = difflib.get_close_matches(parts[-1], sorted(candidates), n=3, cutoff=0.75)
+        close += sorted(c for c in candidates if c.startswith(stem) and c not in close)
+        return [".".join(parts[:-1] + [c]) for c in close[:3]]
+    keys = [k for k in dotted(config or {}) if k != key and "._" not in k]
+    return difflib.get_close_matches(key, keys, n=3, cutoff=0.75)
+
+
+def _unknown_key_message(key, overrides):
+    """The one line for an override of ``key``, which the experiment's config lacks."""
+    where = f"Could not override '{key}'"
+    if key == "hydra" or key.startswith("hydra."):
+        close = _close_keys(key, {"hydra": (_experiment_config(overrides, hydra=True)
+                                            or {}).get("hydra", {})})
+        return (f"{where}: no such Hydra setting"
+                + (f"; did you mean {' or '.join(close)}?" if close else
+                   " (Hydra's settings: replicate --cfg hydra)"))
+    config = _experiment_config(overrides)
+    settings = code_settings(config["runner"]) if config and config.get("runner") else None
+    parts = key.split(".")
+    for i in range(1, len(parts)):
+        value = _get_path(config or {}, parts[:i])
+        if value is not None and not isinstance(value, dict):
+            return (f"{where}: {'.'.join(parts[:i])} is a value ({value!r}), not a block of "
+                    "settings")
+    read = may_be_read(key, config, settings) if settings else None
+    close = _close_keys(key, config, settings)
+    advice = f"add it with +{key}=VALUE"
+    if read == "defaults":
+        return (f"{where}: not a key of this experiment's config, but a setting the code "
+                f"reads (docs/experiments.md): {advice}"
+                + (f" (or did you mean {' or '.join(close)}?)" if close else ""))
+    if read and not close:
+        return (f"{where}: not a key of this experiment's config; the code reads a setting "
+                f"of that name when given (docs/experiments.md): {advice}")
+    if close:
+        return (f"{where}: no such key; did you mean {' or '.join(close)}?"
+                + (f" (if {key} is a setting the code reads when given, {advice})" if read
+                   else ""))
+    return (f"{where}: no such key in this experiment's config, nor a setting its code "
+            "reads (its keys: docs/experiments.md, or replicate experiment=NAME --cfg job)")
+
+
+def _get_path(config, parts):
+    """``config[parts[0]][parts[1]]...``, or ``None`` where a part is missing."""
     node = config
-    for part in parts[:-1]:
-        if isinstance(node, dict) and part in node:
-            node = node[part]
-            if node is not None and not isinstance(node, dict):
-                return False   # a value, not a block of settings
-        elif part in optional:
-            node = {}
-        else:
-            return False
-    return True
+    for part in parts:
+        if not isinstance(node, dict) or part not in node:
+            return None
+        node = node[part]
+    return node
 
 
 def _hydra_message(error, overrides=()):
@@ -527,18 +685,12 @@ def _hydra_message(error, overrides=()):
     unknown one that ``overrides`` tried to set)."""
     text = str(error)
     if text.startswith("Could not override '"):
+        return _unknown_key_message(text.split("'", 2)[1], overrides)
+    if text.startswith("Could not delete from config. '"):
         key = text.split("'", 2)[1]
-        config = _experiment_config(overrides)
-        close = _close_keys(key, config)
-        if config is not None and may_be_read(key, config):
-            return (f"Could not override '{key}': not a key of this experiment's config, but "
-                    f"a setting the code reads (docs/experiments.md): add it with "
-                    f"+{key}=VALUE"
-                    + (f" (or did you mean {' or '.join(close)}?)" if close else ""))
-        if close:
-            return (f"Could not override '{key}': no such key; did you mean "
-                    f"{' or '.join(close)}? (+{key}=VALUE would add it as a new key, which "
-                    "the run ignores unless it reads it)")
+        close = _close_keys(key, _experiment_config(overrides))
+        return (f"~{key}: no such key to delete"
+                + (f"; did you mean {' or '.join(close)}?" if close else ""))
     if "LexerNoViableAltException" in text:
         line = text.split("LexerNoViableAltException:", 1)[1].strip().splitlines()[0].strip()
         key, _, value = line.partition("=")
@@ -568,47 +720,13 @@ def _hydra_message(error, overrides=()):
     return "; ".join(lines[:2]) or type(error).__name__
 
 
-@functools.lru_cache(maxsize=1)
-def optional_keys():
-    """Settings a runner takes when given and defaults otherwise, which experiment configs
-    may leave out (``cost.frames``, ``method.tukey_c``): the names the package reads with
-    ``.get("NAME"``, and the keys of its module-level ``*DEFAULTS`` dicts (the settings
-    merged over a config's block, nested dicts included) and ``*GROUPS`` dicts (the blocks
-    of such settings, ``method.pyramid``). By name, not path: :func:`may_be_read` also
-    asks for the parents. Read from the sources once per
-    process, and only when an override adds a key or names one the config lacks."""
-    import ast
-
-    def dict_keys(node):
-        for key, value in zip(node.keys, node.values):
-            if isinstance(key, ast.Constant) and isinstance(key.value, str):
-                yield key.value
-            if isinstance(value, ast.Dict):
-                yield from dict_keys(value)
-
-    names = set()
-    for path in Path(__file__).resolve().parent.rglob("*.py"):
-        tree = ast.parse(path.read_text())
-        for node in ast.walk(tree):
-            if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
-                    and node.func.attr == "get" and node.args
-                    and isinstance(node.args[0], ast.Constant)
-                    and isinstance(node.args[0].value, str)):
-                names.add(node.args[0].value)
-        for node in tree.body:
-            if (isinstance(node, ast.Assign) and isinstance(node.value, ast.Dict)
-                    and any(isinstance(t, ast.Name) and t.id.endswith(("DEFAULTS", "GROUPS"))
-                            for t in node.targets)):
-                names.update(dict_keys(node.value))
-    return frozenset(names)
-
-
-def unread_added_keys(overrides, defaults, optional=None):
-    """The keys that ``+KEY=VALUE`` (or ``++KEY=VALUE``) overrides add, which neither the
-    experiment's config (``defaults``) holds nor the package reads as an optional setting
-    (:func:`may_be_read`, with ``optional``): Hydra accepts
-    any new key, and a runner ignores what it does not read, so a misspelt ``+budgett=300``
-    would change nothing. Config groups (``+smoke=``) and ``hydra`` keys are left out."""
+def unread_added_keys(overrides, defaults, settings):
+    """The keys that ``+KEY=VALUE`` (or ``++KEY=VALUE``) overrides add, as given
+    (``+KEY``, ``++KEY``), which neither the experiment's config (``defaults``) holds nor
+    the code may read (:func:`may_be_read` with ``settings``, :func:`code_settings`): Hydra
+    accepts any new key, and a runner ignores what it does not read, so a misspelt
+    ``+budgett=300`` would change nothing. Config groups (``+smoke=``) and ``hydra`` keys
+    are left out."""
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
     unread = []
@@ -618,22 +736,21 @@ def unread_added_keys(overrides, defaults, optional=None):
                 or key == "hydra" or key.startswith(("hydra.", "hydra/"))
                 or (Path(CONFIG_DIR) / key).is_dir()):
             continue
-        node, known = defaults, True
-        for part in key.split("."):
-            known = isinstance(node, dict) and part in node
-            if not known:
-                break
-            node = node[part]
-        if not known and not may_be_read(key, defaults, optional):
-            unread.append(key)
+        *parents, leaf = key.split(".")
+        block = _get_path(defaults, parents)
+        if not (isinstance(block, dict) and leaf in block) and not may_be_read(
+                key, defaults, settings):
+            unread.append(("++" if override.is_force_add() else "+") + key)
     return unread
 
 
 def _note_unread(overrides, defaults, name):
-    for key in unread_added_keys(overrides, defaults or {}):
-        print(f"note: +{key} is not a key of {name}'s config, nor a setting the code "
-              "reads: the run ignores it (check the spelling against docs/experiments.md)",
-              file=sys.stderr)
+    settings = code_settings((defaults or {}).get("runner")) if (defaults or {}).get(
+        "runner") else (frozenset(), {}, {}, [])
+    for key in unread_added_keys(overrides, defaults or {}, settings):
+        print(f"note: {key} is not a key of {name}'s config, nor a setting the code "
+              "reads: the run ignores it, or refuses it where it checks its settings "
+              "(check the spelling against docs/experiments.md)", file=sys.stderr)
 
 
 def precheck(overrides):
@@ -914,9 +1031,22 @@ def unknown_options(args):
         return "--progress needs a value: --progress=bar|plain|none" + tail
     parser = _hydra_parser()
     try:
-        _, unknown = parser.parse_known_args(args)
+        known_args, unknown = parser.parse_known_args(args)
     except (argparse.ArgumentError, ValueError) as error:
         return f"{error}" + tail
+    modes = [name for name, on in (
+        ("--run", known_args.run), ("--multirun", known_args.multirun),
+        ("--cfg", known_args.cfg), ("--info", known_args.info),
+        ("--shell-completion", known_args.shell_completion)) if on]
+    if len(modes) > 1:
+        return f"{' and '.join(modes)}: Hydra takes one of them at a time" + tail
+    for option, value in (("--package", known_args.package),
+                          ("--config-path", known_args.config_path),
+                          ("--config-name", known_args.config_name),
+                          ("--config-dir", known_args.config_dir)):
+        if value is not None and "=" in value:
+            return (f"{option} took {value} as its value (it needs one of its own: "
+                    f"{option} VALUE, or {option}=VALUE)" + tail)
     if not unknown:
         return None
     stray = [arg for arg in unknown if not arg.startswith("-")]
@@ -966,7 +1096,14 @@ def main():
     chain, sweep_dir = [], None
     try:
         flags = [arg for arg in args if arg.startswith("-")]
-        if flags and set(flags) <= {"-m", "--multirun"}:
+        inspect = _inspecting(args)
+        if inspect is not None:
+            # --cfg, --info, --resolve, --package: Hydra's refusals as one line too
+            try:
+                _compose_check(inspect)
+            except InputError as error:
+                _error(error)
+        elif flags and set(flags) <= {"-m", "--multirun"}:
             # a sweep: Hydra's refusals (unknown key or experiment) as one line; each job
             # checks its own config
             try:
@@ -974,10 +1111,10 @@ def main():
             except InputError as error:
                 _error(error)
             chain = _start_sweep(sweep_dir)
-        if not flags:
+        if set(flags) <= {"-r", "--run"}:
             # a single run: refuse bad config before Hydra creates the run folder
             try:
-                out = precheck(args)
+                out = precheck([arg for arg in args if arg not in flags])
             except InputError as error:
                 _error(error)
             except OSError as error:
@@ -999,6 +1136,36 @@ def main():
     finally:
         signal.signal(signal.SIGTERM, previous)
         os.environ.pop(SWEEP_ENVIRONMENT, None)
+
+
+def _inspecting(args):
+    """The overrides of ``args`` when they ask Hydra to show something rather than run
+    (``--cfg``, ``--info``, ``--resolve``, ``--package``), else ``None`` (also for help
+    and shell completion, which read no experiment)."""
+    known, _ = _hydra_parser().parse_known_args(args)
+    if known.help or known.hydra_help or known.shell_completion:
+        return None
+    if known.cfg or known.info or known.resolve or known.package:
+        return list(known.overrides)
+    return None
+
+
+def _compose_check(overrides):
+    """Compose ``overrides`` as Hydra will; :class:`InputError` with Hydra's refusal as one
+    line (:func:`_hydra_message`)."""
+    from hydra import compose, initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    GlobalHydra.instance().clear()
+    try:
+        with initialize_config_dir(config_dir=CONFIG_DIR, version_base="1.3"):
+            compose(config_name="config", overrides=list(overrides))
+    except (HydraException, OmegaConfBaseException, ValueError) as error:
+        raise InputError(_hydra_message(error, overrides)) from None
+    finally:
+        GlobalHydra.instance().clear()
 
 
 def _start_sweep(sweep_dir):

@@ -245,10 +245,24 @@ CONFIG_CASES = [
     # elsewhere: method.sigma, hydra's launcher keys); an optional setting gets both
     ("motion_single", ["mehtod.sigma=2.0"],
      "Could not override 'mehtod.sigma': no such key; did you mean method.sigma?"),
-    ("motion_single", ["hydra.launcher.workers=2"], "Could not override 'hydra.launcher"),
-    ("cloth_identify", ["cost.frames=20"],
-     "add it with +cost.frames=VALUE (or did you mean cost.frame?)"),
-    ("motion_single", ["method.pyramid.refine_pixels=9"], "did you mean method.refine_pixels?"),
+    ("motion_single", ["methods.sigma=2"], "no such key; did you mean method.sigma?"),
+    ("motion_single", ["hydra.run.dirr=x"],
+     "Could not override 'hydra.run.dirr': no such Hydra setting; did you mean hydra.run.dir"),
+    ("cloth_identify", ["cost.frames=20"], "did you mean cost.frame? (if cost.frames is a "
+     "setting the code reads when given, add it with +cost.frames=VALUE)"),
+    ("cloth_identify", ["n_seeds=3"], "the code reads a setting of that name when "
+     "given (docs/experiments.md): add it with +n_seeds=VALUE"),
+    ("cloth_identify", ["init.seed=1"], "no such key in this experiment's config, nor a "
+     "setting its code reads"),
+    ("motion_single", ["method.pyramid.refine_pixels=9"],
+     "no such key; did you mean method.refine_pixels?"),
+    ("motion_single", ["method.sigma.x=2"], "method.sigma is a value (1.5), not a block"),
+    ("segment_multi", ["method.pyramid.levels=3"],
+     "no such key; did you mean method.pyramid.level_iterations?"),
+    ("segment_multi", ["method.nichega.norm_niche_size=0.1"],
+     "but a setting the code reads (docs/experiments.md): add it with "
+     "+method.nichega.norm_niche_size=VALUE"),
+    ("motion_single", ["~mehtod.sigma"], "~mehtod.sigma: no such key to delete; did you mean"),
     ("fig08_mesh", ["limits.max_seconds=-1"], "limits.max_seconds=-1: expected a number > 0"),
     ("fig08_mesh", ["+limits.foo=1"], "limits.foo: unknown limit"),
     ("fig08_mesh", ["data.path=''"], "data.path='': expected a file or folder path"),

@@ -112,28 +112,49 @@ def test_report_lists_every_reported_experiment(tmp_path):
         assert f"replicate experiment={name}" in text
 
 
+def _settings(name):
+    from replication.cli import _experiment_config, code_settings
+
+    config = _experiment_config([f"experiment={name}"])
+    return config, code_settings(config["runner"])
+
+
 def test_an_added_key_the_experiment_does_not_hold_is_noted_and_a_known_one_is_not():
-    from replication.cli import optional_keys, unread_added_keys
+    from replication.cli import unread_added_keys
 
     defaults = {"budget": 2000, "cost": {"kind": "small", "frame": 150}, "data": {"path": None}}
     overrides = ["+budgett=300", "+cost.frame=10", "+cost.start=5", "+smoke=cloth_ci",
                  "+hydra.launcher.x=1", "budget=10", "+data.path=x", "++hydrate=1",
                  "+cost.framez=3"]
-    assert unread_added_keys(overrides, defaults, optional=set()) == [
-        "budgett", "cost.start", "hydrate", "cost.framez"]
-    # settings the code reads when given (cost_from_config's cost.start, cost.frames)
-    assert {"start", "frames", "window"} <= optional_keys()
-    assert unread_added_keys(overrides, defaults) == ["budgett", "hydrate", "cost.framez"]
-    # the settings merged from the code's *DEFAULTS dicts (motion.single.DEFAULTS, the
-    # segmentation's PYRAMID_DEFAULTS) are read too: no note, which was wrong for them
-    assert {"tukey_c", "refine_pixels", "level_iterations"} <= optional_keys()
-    assert unread_added_keys(["+method.tukey_c=0.2", "+method.pyramid.refine_pixels=9"],
-                             {"method": {}}) == []
-    # by path, not by last name alone: a misspelt block, a setting under a value, and the
-    # hydra block are not settings the code reads
-    assert unread_added_keys(["+mehtod.tukey_c=0.2", "+budget.tukey_c=1"],
-                             {"method": {}, "budget": 3}) == ["mehtod.tukey_c",
-                                                              "budget.tukey_c"]
+    nothing = (frozenset(), {}, {}, [])
+    assert unread_added_keys(overrides, defaults, nothing) == [
+        "+budgett", "+cost.start", "++hydrate", "+cost.framez"]
+    # settings the code reads from the block when given (cost_from_config's cost_cfg.get)
+    config, settings = _settings("cloth_identify")
+    assert unread_added_keys(overrides, defaults, settings) == [
+        "+budgett", "++hydrate", "+cost.framez"]
+    # by the block the code reads a name from: seed is read, but not from init or cost
+    assert unread_added_keys(["+cost.frames=[1]", "+cost.window=3", "+init.seed=1",
+                              "+cost.seed=1", "+data.seed=1"], config, settings) == [
+        "+init.seed", "+cost.seed", "+data.seed"]
+
+
+def test_added_settings_merged_from_the_codes_defaults_go_by_block():
+    from replication.cli import unread_added_keys
+
+    # motion_single's method block is merged over motion.single.DEFAULTS
+    config, settings = _settings("motion_single")
+    assert unread_added_keys(["+method.tukey_c=0.2", "+method.pyramid.refine_pixels=9",
+                              "+methods.sigma=2", "+report.sigma=1", "+budget=5"],
+                             config, settings) == [
+        "+method.pyramid.refine_pixels", "+methods.sigma", "+report.sigma", "+budget"]
+    # the segmentation's method block holds groups (pipeline.GROUPS), each over its own
+    # defaults; nichega is read with method.pop and merged over NICHEGA_DEFAULTS
+    config, settings = _settings("segment_multi")
+    assert unread_added_keys(["+method.pyramid.refine_pixels=9", "+method.pyramid.bogus=1",
+                              "+method.nichega.norm_niche_size=0.1", "+method.tukey_c=1"],
+                             config, settings) == ["+method.pyramid.bogus",
+                                                   "+method.tukey_c"]
 
 
 def test_a_setting_the_config_leaves_out_is_refused_with_the_plus_spelling(tmp_path):
@@ -227,6 +248,9 @@ def test_help_names_the_suites_own_options():
     (["-p"], "argument --package/-p: expected one argument"),
     (["--progress"], "--progress needs a value"),
     (["-m", "seed=0,1"], "seed=0,1: overrides split by one of Hydra's options"),
+    (["-m", "--cfg", "job"], "--multirun and --cfg: Hydra takes one of them at a time"),
+    (["-p", "seed=1"], "--package took seed=1 as its value"),
+    (["mehtod.sigma=1", "--cfg", "job"], "Could not override 'mehtod.sigma'"),
 ])
 def test_options_argparse_refuses_are_one_line(tmp_path, args, message):
     done = run_cli("experiment=fig08_mesh", *args, cwd=tmp_path)

@@ -492,51 +492,95 @@ def _experiment_config(overrides, hydra=False):
         GlobalHydra.instance().clear()
 
 
+class CodeSettings:
+    """What the code behind a runner reads of a config (:func:`code_settings`).
+
+    - ``names``: ``(block, NAME)`` of each ``BLOCK.get("NAME")`` or ``.pop("NAME")``, the
+      block as the code names it (``cost_cfg``, ``config["cost"]``, ``config.get("data")``);
+    - ``groups``: ``{group: keys}`` of its ``*GROUPS`` dicts (a block of groups,
+      ``method.pyramid``, each merged over its own defaults);
+    - ``named``: ``{name: keys}`` of its ``NAME_DEFAULTS`` dicts (block ``name``);
+    - ``plain``: the keys of its ``DEFAULTS`` dicts (merged over a block holding some of
+      their keys);
+    - ``whole``: blocks it takes whole, so any key of theirs may count (iterated with
+      ``.items()``, unpacked with ``**``, or passed on as an argument that is:
+      ``references``, ``sequences``, ``flow.tvl1`` as ``flow_options``).
+
+    Keys are trees: ``{key: subtree or None}``.
+    """
+
+    def __init__(self, names=(), groups=None, named=None, plain=(), whole=()):
+        self.names, self.groups, self.named = frozenset(names), groups or {}, named or {}
+        self.plain, self.whole = list(plain), frozenset(whole)
+
+    def reads(self, block, name):
+        """Whether the code reads ``name`` from a block called ``block`` (``None``: the
+        config itself), by how it names the block (``cost``, ``cost_cfg``; ``config``)."""
+        def matches(receiver):
+            if block is None:
+                return receiver in ("config", "cfg")
+            return receiver == block or receiver.startswith(block + "_")
+        return any(key == name and matches(receiver) for receiver, key in self.names)
+
+
+def _key_tree(node):
+    """The keys of a dict display, nested: ``{key: subtree or None}``."""
+    return {key.value: (_key_tree(value) if isinstance(value, ast.Dict) else None)
+            for key, value in zip(node.keys, node.values)
+            if isinstance(key, ast.Constant) and isinstance(key.value, str)}
+
+
 @functools.lru_cache(maxsize=16)
 def code_settings(runner):
-    """What the code behind ``runner`` (``"module:function"``, the modules it imports,
-    :func:`replication.provenance.module_closure`) reads of a config, from its sources:
+    """:class:`CodeSettings` of ``runner`` (``"module:function"``), read from the sources
+    of its module and of the package modules it imports (by module, not by line: what
+    another runner of the same module reads counts too). Sources are parsed, not
+    imported."""
+    from replication.provenance import module_closure
 
-    - ``names``: ``(block, NAME)`` of each ``BLOCK.get("NAME")`` or ``.pop("NAME")``
-      (the block as the code names it: ``cost_cfg``, ``config["cost"]``,
-      ``config.get("data")``);
-    - ``groups``: ``{group: settings}`` of its ``*GROUPS`` dicts (a block of groups,
-      ``method.pyramid``, each merged over its own defaults);
-    - ``named``: ``{name: settings}`` of its ``NAME_DEFAULTS`` dicts (block ``name``);
-    - ``plain``: its ``DEFAULTS`` dicts (merged over a block holding some of their keys).
-    """
-    from replication.provenance import PACKAGE_DIR, module_closure, runner_parts
-
-    # the definitions the runner reaches in its own module, and the modules they import
-    segments, modules = runner_parts(runner)
-    sources = [(None, ast.parse("\n".join(segments)))] + [
-        (path, ast.parse(path.read_text())) for path in module_closure(modules)]
-    names, groups, named, plain = set(), {}, {}, []
-    for path, tree in sources:
+    module = runner.partition(":")[0]
+    names, whole, passed, dicts, group_nodes = set(), set(), set(), {}, []
+    for path in module_closure([module]):
+        tree = ast.parse(path.read_text())
         for node in ast.walk(tree):
-            if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
-                    and node.func.attr in ("get", "pop") and node.args
-                    and isinstance(node.args[0], ast.Constant)
-                    and isinstance(node.args[0].value, str)):
-                names.add((_receiver(node.func.value), node.args[0].value))
-        variables = [t.id for node in tree.body if isinstance(node, ast.Assign)
-                     for t in node.targets if isinstance(t, ast.Name)
-                     and t.id.endswith(("DEFAULTS", "GROUPS"))]
-        if not variables or path is None:
-            continue
-        parts = path.relative_to(PACKAGE_DIR.parent).with_suffix("").parts
-        loaded = importlib.import_module(".".join(p for p in parts if p != "__init__"))
-        for variable in variables:
-            value = getattr(loaded, variable)
-            if not isinstance(value, dict):
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute):
+                if (node.func.attr in ("get", "pop") and node.args
+                        and isinstance(node.args[0], ast.Constant)
+                        and isinstance(node.args[0].value, str)):
+                    names.add((_receiver(node.func.value), node.args[0].value))
+                if node.func.attr in ("items", "keys", "values") and not node.args:
+                    whole.add(_receiver(node.func.value))
+            if isinstance(node, ast.Call):
+                for keyword in node.keywords:
+                    if keyword.arg is None:
+                        whole.add(_receiver(keyword.value))
+                    else:
+                        passed.add((keyword.arg, _receiver(keyword.value)))
+        for node in tree.body:
+            if not (isinstance(node, ast.Assign) and isinstance(node.value, ast.Dict)):
                 continue
-            if variable.endswith("GROUPS"):
-                groups.update({k: v for k, v in value.items() if isinstance(v, dict)})
-            elif variable == "DEFAULTS":
-                plain.append(value)
-            else:
-                named[variable[:-len("_DEFAULTS")].lower()] = value
-    return frozenset(names), groups, named, plain
+            for target in node.targets:
+                if isinstance(target, ast.Name) and target.id.endswith("GROUPS"):
+                    group_nodes.append((path, node.value))
+                elif isinstance(target, ast.Name) and target.id.endswith("DEFAULTS"):
+                    dicts[(path.stem, target.id)] = _key_tree(node.value)
+    groups = {}
+    for path, node in group_nodes:   # values: NAME (this module's) or module.NAME
+        for key, value in zip(node.keys, node.values):
+            where = ((path.stem, value.id) if isinstance(value, ast.Name) else
+                     (value.value.id, value.attr) if isinstance(value, ast.Attribute)
+                     and isinstance(value.value, ast.Name) else None)
+            if isinstance(key, ast.Constant) and where in dicts:
+                groups[key.value] = dicts[where]
+    named = {name[:-len("_DEFAULTS")].lower(): keys for (_, name), keys in dicts.items()
+             if name != "DEFAULTS"}
+    plain = [keys for (_, name), keys in dicts.items() if name == "DEFAULTS"]
+    while True:   # passed on as an argument that is unpacked (flow_options -> options)
+        more = {block for argument, block in passed if argument in whole} - whole
+        if not more:
+            break
+        whole |= more
+    return CodeSettings(names, groups, named, plain, whole - {"config", "cfg", ""})
 
 
 def _receiver(node):
@@ -557,63 +601,59 @@ def _receiver(node):
     return ""
 
 
-def _reads(settings, block, name):
-    """Whether the code reads ``name`` from a block called ``block`` (``None``: the config
-    itself), by how it names the block (``cost``, ``cost_cfg``; ``config``, ``cfg``)."""
-    def matches(receiver):
-        if block is None:
-            return receiver in ("config", "cfg")
-        return receiver == block or receiver.startswith(block + "_")
-    return any(key == name and matches(receiver) for receiver, key in settings[0])
-
-
 def _settings_block(key, config, settings):
-    """Where ``key``'s parents lead in ``config``: ``(block, defaults)``, the block (a dict,
-    ``{}`` where the config leaves it out but the code reads it) and the settings dicts the
-    code merges it over; ``None`` when a parent is neither in the config nor a block the
-    code reads, or is a value."""
-    _, groups, named, plain = settings
-    node, defaults, parent = config, [], None
+    """Where ``key``'s parents lead in ``config``: ``(block, defaults, whole)``, the block
+    (a dict, ``{}`` where the config leaves it out but the code reads it), the key trees
+    of the settings the code merges it over, and whether the code takes it (or a block
+    around it) whole; ``None`` when a parent is neither in the config nor a block the code
+    reads, or is a value."""
+    node, defaults, parent, whole = config, [], None, False
     for part in key.split(".")[:-1]:
         inner = [d[part] for d in defaults if isinstance(d.get(part), dict)]
-        inner += [named[part]] if part in named else []
-        if not defaults and part in groups:   # a block of groups, not of settings
-            inner.append(groups[part])
+        inner += [settings.named[part]] if part in settings.named else []
+        if parent is not None and not defaults and part in settings.groups:
+            inner.append(settings.groups[part])   # a block of groups, not of settings
         if isinstance(node, dict) and part in node:
             child = node[part]
             if child is not None and not isinstance(child, dict):
                 return None
             node = child or {}
-            inner += [d for d in plain if node and set(node) <= set(d)]
-        elif inner and (part in groups or _reads(settings, parent, part)):
+            inner += [d for d in settings.plain if node and set(node) <= set(d)]
+        elif whole or (inner and ((parent is not None and part in settings.groups)
+                                  or settings.reads(parent, part))):
             node = {}
         else:
             return None
+        whole = whole or (not inner and part in settings.whole)
         defaults, parent = inner, part
-    return node, defaults
+    return node, defaults, whole
 
 
 def may_be_read(key, config, settings):
     """Whether the dotted ``key``, which ``config`` lacks, may be a setting the code reads
     (``settings``: :func:`code_settings` of the experiment's runner): ``"defaults"`` when
-    it is a key of the settings dicts its block is merged over, ``"name"`` when its block
-    has none and the code reads the name with ``.get``/``.pop`` from a block of that name
-    (:func:`_reads`: a weaker sign), else ``None``. ``hydra`` keys are not settings of
-    the experiment."""
+    it is a key of the settings dicts its block is merged over, ``"whole"`` when the code
+    takes its block whole, ``"name"`` when the code reads the name with ``.get``/``.pop``
+    from a block of that name (a weaker sign: maybe for another runner of the module),
+    else ``None``. ``hydra`` keys are not settings of the experiment."""
     found = None if key.split(".")[0] == "hydra" else _settings_block(key, config, settings)
     if found is None:
         return None
-    leaf, (_, defaults) = key.split(".")[-1], found
+    leaf, (_, defaults, whole) = key.split(".")[-1], found
     if defaults:
         return "defaults" if any(leaf in d for d in defaults) else None
+    if whole:
+        return "whole"
     parents = key.split(".")[:-1]
-    return "name" if _reads(settings, parents[-1] if parents else None, leaf) else None
+    return "name" if settings.reads(parents[-1] if parents else None, leaf) else None
 
 
 def _close_keys(key, config, settings=None):
     """Keys spelt like ``key`` (dotted), best first: in its block (the config's keys and
-    the settings the code merges the block over), or anywhere in ``config`` when its
-    block is neither in the config nor read by the code (a misspelt block)."""
+    the settings the code merges the block over; a short name also by a looser match, and
+    any case), then the same name one block down (``method.tukey_c`` for
+    ``method.pyramid.tukey_c``); anywhere in ``config`` when its block is neither in the
+    config nor read by the code (a misspelt block)."""
     import difflib
 
     def dotted(node, prefix=""):
@@ -621,16 +661,23 @@ def _close_keys(key, config, settings=None):
             yield prefix + str(name)
             if isinstance(value, dict):
                 yield from dotted(value, f"{prefix}{name}.")
-    parts = key.split(".")
+    *parents, leaf = key.split(".")
     found = _settings_block(key, config or {}, settings) if settings else None
     if found is not None:
-        block, defaults = found
-        candidates = {*block, *(k for d in defaults for k in d)} - {parts[-1]}
-        stem = parts[-1][:max(4, len(parts[-1]) - 1)]
-        candidates = {c for c in candidates if not str(c).startswith("_")}
-        close = difflib.get_close_matches(parts[-1], sorted(candidates), n=3, cutoff=0.75)
-        close += sorted(c for c in candidates if c.startswith(stem) and c not in close)
-        return [".".join(parts[:-1] + [c]) for c in close[:3]]
+        block, defaults, _ = found
+        candidates = sorted({str(c) for c in [*block, *(k for d in defaults for k in d)]}
+                            - {leaf})
+        lower = {c.lower(): c for c in reversed(candidates)}
+        close = [lower[c] for c in difflib.get_close_matches(
+            leaf.lower(), list(lower), n=3, cutoff=0.75 if len(leaf) > 3 else 0.5)]
+        stem = leaf[:max(4, len(leaf) - 1)]
+        close += [c for c in candidates if c.startswith(stem) and c not in close]
+        if not close:   # one block down: the setting of a group
+            groups = settings.groups if set(block) & set(settings.groups) else {}
+            children = {c for c, v in block.items() if isinstance(v, dict)} | set(groups)
+            close = [f"{child}.{leaf}" for child in sorted(children)
+                     if leaf in {*(groups.get(child) or {}), *(block.get(child) or {})}]
+        return [".".join(parents + [c]) for c in close[:3]]
     keys = [k for k in dotted(config or {}) if k != key and "._" not in k]
     return difflib.get_close_matches(key, keys, n=3, cutoff=0.75)
 
@@ -645,23 +692,30 @@ def _unknown_key_message(key, overrides):
                 + (f"; did you mean {' or '.join(close)}?" if close else
                    " (Hydra's settings: replicate --cfg hydra)"))
     config = _experiment_config(overrides)
-    settings = code_settings(config["runner"]) if config and config.get("runner") else None
+    if not (config and config.get("runner")):
+        return (f"{where}: no such key in the root config (configs/config.yaml); no "
+                "experiment chosen: pass experiment=NAME")
+    settings = code_settings(config["runner"])
     parts = key.split(".")
     for i in range(1, len(parts)):
         value = _get_path(config or {}, parts[:i])
         if value is not None and not isinstance(value, dict):
             return (f"{where}: {'.'.join(parts[:i])} is a value ({value!r}), not a block of "
                     "settings")
-    read = may_be_read(key, config, settings) if settings else None
+    read = may_be_read(key, config, settings)
     close = _close_keys(key, config, settings)
     advice = f"add it with +{key}=VALUE"
     if read == "defaults":
         return (f"{where}: not a key of this experiment's config, but a setting the code "
                 f"reads (docs/experiments.md): {advice}"
                 + (f" (or did you mean {' or '.join(close)}?)" if close else ""))
+    if read == "whole" and not close:
+        return (f"{where}: not a key of this experiment's config, but in a block the code "
+                f"takes whole (its keys are options of what it configures): {advice}")
     if read and not close:
         return (f"{where}: not a key of this experiment's config; the code reads a setting "
-                f"of that name when given (docs/experiments.md): {advice}")
+                f"of that name when given, maybe for another experiment (docs/experiments.md "
+                f"lists this one's): if it is this one's, {advice}")
     if close:
         return (f"{where}: no such key; did you mean {' or '.join(close)}?"
                 + (f" (if {key} is a setting the code reads when given, {advice})" if read
@@ -720,10 +774,11 @@ def _hydra_message(error, overrides=()):
     return "; ".join(lines[:2]) or type(error).__name__
 
 
-def unread_added_keys(overrides, defaults, settings):
+def unread_added_keys(overrides, defaults, settings=None):
     """The keys that ``+KEY=VALUE`` (or ``++KEY=VALUE``) overrides add, as given
     (``+KEY``, ``++KEY``), which neither the experiment's config (``defaults``) holds nor
-    the code may read (:func:`may_be_read` with ``settings``, :func:`code_settings`): Hydra
+    the code may read (:func:`may_be_read` with ``settings``, by default
+    :func:`code_settings` of the config's runner): Hydra
     accepts any new key, and a runner ignores what it does not read, so a misspelt
     ``+budgett=300`` would change nothing. Config groups (``+smoke=``) and ``hydra`` keys
     are left out."""
@@ -738,16 +793,18 @@ def unread_added_keys(overrides, defaults, settings):
             continue
         *parents, leaf = key.split(".")
         block = _get_path(defaults, parents)
-        if not (isinstance(block, dict) and leaf in block) and not may_be_read(
-                key, defaults, settings):
+        if isinstance(block, dict) and leaf in block:
+            continue
+        if settings is None:   # parsed only when an added key is not in the config
+            settings = (code_settings(defaults["runner"]) if defaults.get("runner")
+                        else CodeSettings())
+        if not may_be_read(key, defaults, settings):
             unread.append(("++" if override.is_force_add() else "+") + key)
     return unread
 
 
 def _note_unread(overrides, defaults, name):
-    settings = code_settings((defaults or {}).get("runner")) if (defaults or {}).get(
-        "runner") else (frozenset(), {}, {}, [])
-    for key in unread_added_keys(overrides, defaults or {}, settings):
+    for key in unread_added_keys(overrides, defaults or {}):
         print(f"note: {key} is not a key of {name}'s config, nor a setting the code "
               "reads: the run ignores it, or refuses it where it checks its settings "
               "(check the spelling against docs/experiments.md)", file=sys.stderr)
@@ -906,19 +963,21 @@ def compose_first_job(args):
             sweep_dir = str(hydra_config.sweep.dir)
             if any(line.startswith("experiment=") for _, line in swept):
                 _check_shared_keys(plain, compose(config_name="config"))
-            defaults = own = None
+            owns, own = {}, None
             for job in jobs:
                 config = OmegaConf.to_container(compose(config_name="config", overrides=job),
                                                 resolve=True)
                 name = config.get("name")
                 if name in available_experiments():
-                    own = OmegaConf.to_container(compose(
-                        config_name="config", overrides=[f"experiment={name}"]), resolve=True)
-                    defaults = own if defaults is None else defaults
+                    if name not in owns:
+                        owns[name] = OmegaConf.to_container(compose(
+                            config_name="config", overrides=[f"experiment={name}"]),
+                            resolve=True)
+                    own = owns[name]
                 if config.get("runner"):
                     check_config(config, own)
-        if config.get("runner"):
-            _note_unread(overrides, defaults, config["name"])
+        for name, own in owns.items():   # each experiment of the sweep reads its own keys
+            _note_unread(overrides, own, name)
     except (HydraException, OmegaConfBaseException, ValueError) as error:
         raise InputError(_hydra_message(error, list(args))) from None
     finally:

@@ -250,8 +250,9 @@ CONFIG_CASES = [
      "Could not override 'hydra.run.dirr': no such Hydra setting; did you mean hydra.run.dir"),
     ("cloth_identify", ["cost.frames=20"], "did you mean cost.frame? (if cost.frames is a "
      "setting the code reads when given, add it with +cost.frames=VALUE)"),
-    ("cloth_identify", ["n_seeds=3"], "the code reads a setting of that name when "
-     "given (docs/experiments.md): add it with +n_seeds=VALUE"),
+    ("cloth_identify", ["n_seeds=3"], "the code reads a setting of that name when given, "
+     "maybe for another experiment (docs/experiments.md lists this one's): if it is this "
+     "one's, add it with +n_seeds=VALUE"),
     ("cloth_identify", ["init.seed=1"], "no such key in this experiment's config, nor a "
      "setting its code reads"),
     ("motion_single", ["method.pyramid.refine_pixels=9"],
@@ -263,6 +264,12 @@ CONFIG_CASES = [
      "but a setting the code reads (docs/experiments.md): add it with "
      "+method.nichega.norm_niche_size=VALUE"),
     ("motion_single", ["~mehtod.sigma"], "~mehtod.sigma: no such key to delete; did you mean"),
+    ("cloth_identify", ["bounds.k=[1,2]"], "no such key; did you mean bounds.K?"),
+    ("segment_multi", ["ea.sigma=4"], "Could not override 'ea.sigma': no such key in this "
+     "experiment's config, nor a setting its code reads"),
+    ("segment_multi", ["method.sigma=4"], "did you mean method.assign.sigma or method.ea.sigma?"),
+    ("motion_accuracy", ["flow.tvl1.attachment=5"], "in a block the code takes whole"),
+    ("fig08_mesh", ["zoomm=3"], "did you mean zoom?"),
     ("fig08_mesh", ["limits.max_seconds=-1"], "limits.max_seconds=-1: expected a number > 0"),
     ("fig08_mesh", ["+limits.foo=1"], "limits.foo: unknown limit"),
     ("fig08_mesh", ["data.path=''"], "data.path='': expected a file or folder path"),

@@ -120,13 +120,13 @@ def _settings(name):
 
 
 def test_an_added_key_the_experiment_does_not_hold_is_noted_and_a_known_one_is_not():
-    from replication.cli import unread_added_keys
+    from replication.cli import CodeSettings, unread_added_keys
 
     defaults = {"budget": 2000, "cost": {"kind": "small", "frame": 150}, "data": {"path": None}}
     overrides = ["+budgett=300", "+cost.frame=10", "+cost.start=5", "+smoke=cloth_ci",
                  "+hydra.launcher.x=1", "budget=10", "+data.path=x", "++hydrate=1",
                  "+cost.framez=3"]
-    nothing = (frozenset(), {}, {}, [])
+    nothing = CodeSettings()
     assert unread_added_keys(overrides, defaults, nothing) == [
         "+budgett", "+cost.start", "++hydrate", "+cost.framez"]
     # settings the code reads from the block when given (cost_from_config's cost_cfg.get)
@@ -155,6 +155,23 @@ def test_added_settings_merged_from_the_codes_defaults_go_by_block():
                               "+method.nichega.norm_niche_size=0.1", "+method.tukey_c=1"],
                              config, settings) == ["+method.pyramid.bogus",
                                                    "+method.tukey_c"]
+    # groups only inside their block, not at the top level
+    assert unread_added_keys(["+pyramid.enabled=true", "+ea.sigma=4"], config, settings) == [
+        "+pyramid.enabled", "+ea.sigma"]
+
+
+@pytest.mark.parametrize("name, keys", [
+    ("table1_2", ["+references.copy=x.npz"]),           # iterated: config["references"].items()
+    ("motion_data", ["+sequences.new.role=accuracy"]),
+    ("motion_accuracy", ["+flow.tvl1.attachment=5"]),   # passed on as flow_options, unpacked
+    ("motion_accuracy", ["+flow.cache_dir=x"]),         # read in the runner's own module
+    ("discrepancy", ["+figures_dir=x"]),
+])
+def test_added_keys_of_blocks_the_code_takes_whole_get_no_note(name, keys):
+    from replication.cli import unread_added_keys
+
+    config, settings = _settings(name)
+    assert unread_added_keys(keys, config, settings) == []
 
 
 def test_a_setting_the_config_leaves_out_is_refused_with_the_plus_spelling(tmp_path):

@@ -469,27 +469,51 @@ def _run_task(cfg):
         raise
 
 
+@contextmanager
+def composing(overrides=(), explain=True):
+    """Hydra's ``compose`` for the suite's configs (``compose(config_name="config",
+    overrides=[...])``), with Hydra's and OmegaConf's refusals as one
+    :class:`InputError` line (with ``explain``, :func:`_hydra_message`'s, which spells
+    ``overrides``' unknown keys; else the refusal's own text)."""
+    from hydra import compose, initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    GlobalHydra.instance().clear()
+    try:
+        with initialize_config_dir(config_dir=CONFIG_DIR, version_base="1.3"):
+            yield compose
+    except InputError:
+        raise
+    except (HydraException, OmegaConfBaseException, ValueError) as error:
+        raise InputError(_hydra_message(error, list(overrides)) if explain
+                         else str(error)) from None
+    finally:
+        GlobalHydra.instance().clear()
+
+
+def _own_config(compose, name, resolve=True, hydra=False):
+    """The config of experiment ``name`` as its file composes it, without the command
+    line's overrides (a dict; with ``hydra``, Hydra's own block too)."""
+    return OmegaConf.to_container(compose(config_name="config",
+                                          overrides=[f"experiment={name}"],
+                                          return_hydra_config=hydra), resolve=resolve)
+
+
 def _experiment_config(overrides, hydra=False):
     """The chosen experiment's composed config (a dict; with ``hydra``, Hydra's own block
     too) from ``overrides`` (``experiment=NAME``, the first of a sweep's), or ``None``
     (none chosen, or Hydra refuses it)."""
-    from hydra import compose, initialize_config_dir
-    from hydra.core.global_hydra import GlobalHydra
-
     chosen = [o.split("=", 1)[1].split(",")[0] for o in overrides
               if "=" in o and o.split("=", 1)[0].lstrip("+~") == "experiment"]
     if not chosen:
         return None
-    GlobalHydra.instance().clear()
     try:
-        with initialize_config_dir(config_dir=CONFIG_DIR, version_base="1.3"):
-            return OmegaConf.to_container(compose(
-                config_name="config", overrides=[f"experiment={chosen[-1]}"],
-                return_hydra_config=hydra))
-    except Exception:  # noqa: BLE001  (a hint only: no hint rather than another error)
+        with composing(explain=False) as compose:
+            return _own_config(compose, chosen[-1], resolve=False, hydra=hydra)
+    except InputError:   # a hint only: no hint rather than another error
         return None
-    finally:
-        GlobalHydra.instance().clear()
 
 
 class CodeSettings:
@@ -679,7 +703,23 @@ def _close_keys(key, config, settings=None):
                      if leaf in {*(groups.get(child) or {}), *(block.get(child) or {})}]
         return [".".join(parents + [c]) for c in close[:3]]
     keys = [k for k in dotted(config or {}) if k != key and "._" not in k]
-    return difflib.get_close_matches(key, keys, n=3, cutoff=0.75)
+    close = difflib.get_close_matches(key, keys, n=3, cutoff=0.75)
+    if close or not parents:
+        return close
+    # a misspelt block: its first misspelt part spelt right, then the leaf's close keys
+    # there (mehtod.sigmaa -> method.sigma), else the block itself (mehtod.x -> method)
+    for i, part in enumerate(parents):
+        node = _get_path(config or {}, parents[:i])
+        if isinstance(node, dict) and isinstance(node.get(part), dict):
+            continue
+        blocks = [str(k) for k, v in (node or {}).items() if isinstance(v, dict)]
+        near = difflib.get_close_matches(part, blocks, n=1, cutoff=0.75)
+        if not near:
+            return []
+        fixed = parents[:i] + near + parents[i + 1:]
+        return (_close_keys(".".join(fixed + [leaf]), config, settings)
+                or [".".join(parents[:i] + near)])
+    return []
 
 
 def _unknown_key_message(key, overrides):
@@ -698,7 +738,7 @@ def _unknown_key_message(key, overrides):
     settings = code_settings(config["runner"])
     parts = key.split(".")
     for i in range(1, len(parts)):
-        value = _get_path(config or {}, parts[:i])
+        value = _get_path(config, parts[:i])
         if value is not None and not isinstance(value, dict):
             return (f"{where}: {'.'.join(parts[:i])} is a value ({value!r}), not a block of "
                     "settings")
@@ -813,25 +853,12 @@ def _note_unread(overrides, defaults, name):
 def precheck(overrides):
     """Compose the config of a single run as Hydra will and check it (:func:`check_config`,
     ``out``) before Hydra creates any folder. Returns the output folder."""
-    from hydra import compose, initialize_config_dir
-    from hydra.errors import HydraException
-    from omegaconf.errors import OmegaConfBaseException
-
-    from hydra.core.global_hydra import GlobalHydra
-
-    GlobalHydra.instance().clear()
-    try:
-        with initialize_config_dir(config_dir=CONFIG_DIR, version_base="1.3"):
-            cfg = compose(config_name="config", overrides=list(overrides))
-            config = OmegaConf.to_container(cfg, resolve=True, throw_on_missing=True)
-            name = config.get("name")
-            defaults = None
-            if name in available_experiments():
-                defaults = OmegaConf.to_container(
-                    compose(config_name="config", overrides=[f"experiment={name}"]),
-                    resolve=True)
-    except (HydraException, OmegaConfBaseException, ValueError) as error:
-        raise InputError(_hydra_message(error, overrides)) from None
+    with composing(overrides) as compose:
+        cfg = compose(config_name="config", overrides=list(overrides))
+        config = OmegaConf.to_container(cfg, resolve=True, throw_on_missing=True)
+        name = config.get("name")
+        defaults = (_own_config(compose, name) if name in available_experiments()
+                    else None)
     if not config.get("runner"):
         raise InputError("no experiment chosen: pass experiment=NAME, one of "
                          + ", ".join(available_experiments()))
@@ -910,13 +937,9 @@ def compose_first_job(args):
     args : list of str
         The sweep's overrides, without ``-m``.
     """
-    from hydra import compose, initialize_config_dir
-    from hydra.core.global_hydra import GlobalHydra
     from hydra.core.override_parser.overrides_parser import OverridesParser
     from hydra.errors import HydraException
-    from omegaconf.errors import OmegaConfBaseException
 
-    GlobalHydra.instance().clear()
     try:
         overrides, swept, launcher, plain, fixed, longest = [], [], [], [], [], []
         for override in OverridesParser.create().parse_overrides(list(args)):
@@ -956,7 +979,7 @@ def compose_first_job(args):
                 print(f"note: {line} in a sweep: every job writes there, so only the last "
                       f"job's files stay (each result.json is kept); {per_job} or leaving "
                       f"{key} unset keeps them per job", file=sys.stderr)
-        with initialize_config_dir(config_dir=CONFIG_DIR, version_base="1.3"):
+        with composing(args) as compose:
             hydra_config = compose(config_name="config", overrides=overrides + launcher,
                                    return_hydra_config=True).hydra
             _check_sweep_settings(hydra_config, launcher, longest)
@@ -970,18 +993,16 @@ def compose_first_job(args):
                 name = config.get("name")
                 if name in available_experiments():
                     if name not in owns:
-                        owns[name] = OmegaConf.to_container(compose(
-                            config_name="config", overrides=[f"experiment={name}"]),
-                            resolve=True)
+                        owns[name] = _own_config(compose, name)
                     own = owns[name]
                 if config.get("runner"):
                     check_config(config, own)
         for name, own in owns.items():   # each experiment of the sweep reads its own keys
             _note_unread(overrides, own, name)
-    except (HydraException, OmegaConfBaseException, ValueError) as error:
+    except InputError:
+        raise
+    except (HydraException, ValueError) as error:   # the override parser's refusals
         raise InputError(_hydra_message(error, list(args))) from None
-    finally:
-        GlobalHydra.instance().clear()
     return sweep_dir
 
 
@@ -1060,10 +1081,10 @@ def _hydra_parser():
     return parser
 
 
-def expand_abbreviations(args):
+def expand_abbreviations(args, parser):
     """``args`` with each abbreviation of one of Hydra's long options (``--mult``, which
-    argparse takes for ``--multirun``) spelt out, so that a sweep is seen as one."""
-    parser = _hydra_parser()
+    argparse takes for ``--multirun``; ``parser``: :func:`_hydra_parser`) spelt out, so
+    that a sweep is seen as one."""
     options = [option for action in parser._actions for option in action.option_strings
                if option.startswith("--")]
     expanded = []
@@ -1077,43 +1098,48 @@ def expand_abbreviations(args):
     return expanded
 
 
-def unknown_options(args):
-    """One line naming the options of ``args`` that neither the suite nor Hydra knows, or
-    that Hydra's argparse refuses (a bad value, an ambiguous abbreviation): argparse would
-    print its whole usage. ``None`` when all are known."""
+def unknown_options(args, parser):
+    """``(known, message)``: Hydra's parse of ``args`` (``parser``: :func:`_hydra_parser`;
+    ``None`` when it fails) and one line naming the options that neither the suite nor
+    Hydra knows, or that Hydra's argparse refuses (a bad value, an ambiguous
+    abbreviation), where argparse would print its whole usage; ``message`` is ``None``
+    when all are known."""
     import argparse
     import difflib
 
     tail = ("; replicate takes --strict, --quiet, --progress=MODE, Hydra's options "
             "(replicate --help) and KEY=VALUE overrides")
     if "--progress" in args:   # flag_overrides took every --progress followed by a value
-        return "--progress needs a value: --progress=bar|plain|none" + tail
-    parser = _hydra_parser()
+        return None, "--progress needs a value: --progress=bar|plain|none" + tail
     try:
         known_args, unknown = parser.parse_known_args(args)
     except (argparse.ArgumentError, ValueError) as error:
-        return f"{error}" + tail
+        return None, f"{error}" + tail
     modes = [name for name, on in (
         ("--run", known_args.run), ("--multirun", known_args.multirun),
         ("--cfg", known_args.cfg), ("--info", known_args.info),
         ("--shell-completion", known_args.shell_completion)) if on]
     if len(modes) > 1:
-        return f"{' and '.join(modes)}: Hydra takes one of them at a time" + tail
+        return known_args, f"{' and '.join(modes)}: Hydra takes one of them at a time" + tail
     for option, value in (("--package", known_args.package),
                           ("--config-path", known_args.config_path),
                           ("--config-name", known_args.config_name),
                           ("--config-dir", known_args.config_dir)):
         if value is not None and "=" in value:
-            return (f"{option} took {value} as its value (it needs one of its own: "
-                    f"{option} VALUE, or {option}=VALUE)" + tail)
+            return known_args, (f"{option} took {value} as its value (it needs one of its "
+                                f"own: {option} VALUE, or {option}=VALUE)" + tail)
+    refused = _refused_option_value(known_args)
+    if refused:
+        return known_args, refused
     if not unknown:
-        return None
+        return known_args, None
     stray = [arg for arg in unknown if not arg.startswith("-")]
     unknown = [arg for arg in unknown if arg.startswith("-")]
     if stray and not unknown:   # argparse takes one run of overrides (a=1 -m b=2)
-        return (f"{' '.join(stray)}: overrides split by one of Hydra's options; give them "
-                "together, before or after the options (replicate -m KEY=VALUE ..., "
-                "replicate KEY=VALUE ... --cfg job; --strict and --quiet count as overrides)")
+        return known_args, (
+            f"{' '.join(stray)}: overrides split by one of Hydra's options; give them "
+            "together, before or after the options (replicate -m KEY=VALUE ..., "
+            "replicate KEY=VALUE ... --cfg job; --strict and --quiet count as overrides)")
     known = ["--strict", "--quiet", "--progress"] + [
         option for action in parser._actions for option in action.option_strings]
     hints = []
@@ -1121,8 +1147,35 @@ def unknown_options(args):
         close = difflib.get_close_matches(arg.split("=", 1)[0], known, n=1, cutoff=0.75)
         if close:
             hints.append(f"{arg}: did you mean {close[0]}?")
-    return (f"unknown option(s) {' '.join(unknown)}"
-            + (f" ({'; '.join(hints)})" if hints else "") + tail)
+    return known_args, (f"unknown option(s) {' '.join(unknown)}"
+                        + (f" ({'; '.join(hints)})" if hints else "") + tail)
+
+
+def _refused_option_value(known):
+    """One line for a value of Hydra's options that Hydra would refuse with several lines
+    or a traceback (a missing config, folder or file; shell completion without its
+    command), else ``None``. ``known``: Hydra's parse of the command line."""
+    if known.shell_completion and not any(
+            o.split("=", 1)[0] in ("install", "uninstall", "query") for o in known.overrides):
+        return ("--shell-completion needs one of install=SHELL, uninstall=SHELL or "
+                "query=SHELL (e.g. replicate --shell-completion install=bash)")
+    for option, value in (("--config-dir", known.config_dir),
+                          ("--config-path", known.config_path)):
+        # a relative --config-path is Hydra's to resolve (beside the entry point's file)
+        if value is not None and (option == "--config-dir" or Path(value).is_absolute()) \
+                and not Path(value).is_dir():
+            return f"{option}={value}: no such folder"
+    if (known.config_name is not None and known.config_dir is None
+            and known.config_path is None
+            and not (Path(CONFIG_DIR) / known.config_name).with_suffix(".yaml").is_file()):
+        names = sorted(path.stem for path in Path(CONFIG_DIR).glob("*.yaml"))
+        return (f"--config-name={known.config_name}: no such config in {CONFIG_DIR} "
+                f"(there: {', '.join(names)}; experiments are chosen with experiment=NAME)")
+    rerun = known.experimental_rerun
+    if rerun is not None and not Path(rerun).is_file():
+        return (f"--experimental-rerun {rerun}: no such file (Hydra reruns from a run's "
+                ".hydra/config.pickle, which runs write with hydra.output_subdir=.hydra)")
+    return None
 
 
 USAGE = """usage: replicate experiment=NAME [key=value ...] [--strict] [--quiet]
@@ -1140,11 +1193,12 @@ result.json: docs/results.md. Hydra's own help follows.
 
 def main():
     """Console-script entry point."""
-    sys.argv = sys.argv[:1] + expand_abbreviations(flag_overrides(sys.argv[1:]))
+    parser = _hydra_parser()
+    sys.argv = sys.argv[:1] + expand_abbreviations(flag_overrides(sys.argv[1:]), parser)
     if {"--help", "-h"} & set(sys.argv[1:]):
         print(USAGE)
     args = sys.argv[1:]
-    unknown = unknown_options(args)
+    known, unknown = unknown_options(args, parser)
     if unknown:
         _error(unknown)
 
@@ -1155,7 +1209,7 @@ def main():
     chain, sweep_dir = [], None
     try:
         flags = [arg for arg in args if arg.startswith("-")]
-        inspect = _inspecting(args)
+        inspect = _inspecting(known)
         if inspect is not None:
             # --cfg, --info, --resolve, --package: Hydra's refusals as one line too
             try:
@@ -1197,11 +1251,11 @@ def main():
         os.environ.pop(SWEEP_ENVIRONMENT, None)
 
 
-def _inspecting(args):
-    """The overrides of ``args`` when they ask Hydra to show something rather than run
-    (``--cfg``, ``--info``, ``--resolve``, ``--package``), else ``None`` (also for help
-    and shell completion, which read no experiment)."""
-    known, _ = _hydra_parser().parse_known_args(args)
+def _inspecting(known):
+    """The overrides of the command line (``known``: Hydra's parse of it) when they ask
+    Hydra to show something rather than run (``--cfg``, ``--info``, ``--resolve``,
+    ``--package``), else ``None`` (also for help and shell completion, which read no
+    experiment)."""
     if known.help or known.hydra_help or known.shell_completion:
         return None
     if known.cfg or known.info or known.resolve or known.package:
@@ -1212,19 +1266,8 @@ def _inspecting(args):
 def _compose_check(overrides):
     """Compose ``overrides`` as Hydra will; :class:`InputError` with Hydra's refusal as one
     line (:func:`_hydra_message`)."""
-    from hydra import compose, initialize_config_dir
-    from hydra.core.global_hydra import GlobalHydra
-    from hydra.errors import HydraException
-    from omegaconf.errors import OmegaConfBaseException
-
-    GlobalHydra.instance().clear()
-    try:
-        with initialize_config_dir(config_dir=CONFIG_DIR, version_base="1.3"):
-            compose(config_name="config", overrides=list(overrides))
-    except (HydraException, OmegaConfBaseException, ValueError) as error:
-        raise InputError(_hydra_message(error, overrides)) from None
-    finally:
-        GlobalHydra.instance().clear()
+    with composing(overrides) as compose:
+        compose(config_name="config", overrides=list(overrides))
 
 
 def _start_sweep(sweep_dir):

@@ -246,6 +246,10 @@ CONFIG_CASES = [
     ("motion_single", ["mehtod.sigma=2.0"],
      "Could not override 'mehtod.sigma': no such key; did you mean method.sigma?"),
     ("motion_single", ["methods.sigma=2"], "no such key; did you mean method.sigma?"),
+    # a misspelt block: spelt right, with the leaf's close key there, else the block
+    ("motion_single", ["mehtod.sigmaa=2"], "no such key; did you mean method.sigma?"),
+    ("motion_single", ["mehtod.x=2"], "Could not override 'mehtod.x': no such key; did you "
+     "mean method?"),
     ("motion_single", ["hydra.run.dirr=x"],
      "Could not override 'hydra.run.dirr': no such Hydra setting; did you mean hydra.run.dir"),
     ("cloth_identify", ["cost.frames=20"], "did you mean cost.frame? (if cost.frames is a "

@@ -268,6 +268,12 @@ def test_help_names_the_suites_own_options():
     (["-m", "--cfg", "job"], "--multirun and --cfg: Hydra takes one of them at a time"),
     (["-p", "seed=1"], "--package took seed=1 as its value"),
     (["mehtod.sigma=1", "--cfg", "job"], "Could not override 'mehtod.sigma'"),
+    # values Hydra would refuse with several lines or a traceback
+    (["--config-name=x"], "--config-name=x: no such config in "),
+    (["--config-dir=/no/such/dir"], "--config-dir=/no/such/dir: no such folder"),
+    (["--config-path=/no/such/dir"], "--config-path=/no/such/dir: no such folder"),
+    (["--shell-completion"], "--shell-completion needs one of install=SHELL"),
+    (["--experimental-rerun", "nope.pickle"], "--experimental-rerun nope.pickle: no such file"),
 ])
 def test_options_argparse_refuses_are_one_line(tmp_path, args, message):
     done = run_cli("experiment=fig08_mesh", *args, cwd=tmp_path)

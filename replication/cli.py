@@ -191,12 +191,14 @@ class Staging:
         path.write_text(text)
 
     def commit(self, result_name="result.json"):
-        """Move every staged file to its real place, ``out/result.json`` last."""
+        """Move every staged file to its real place, ``out/result.json`` last;
+        ``self.filled``: the real folders that received a file."""
         moves = []
         for staged, real in self.targets.items():
             for item in sorted(staged.rglob("*")):
                 if not item.is_dir():
                     moves.append((item, real / item.relative_to(staged)))
+        self.filled = {target.parent for _, target in moves}
         last = self.root / "out" / result_name
         moves.sort(key=lambda move: move[0] == last)
         for item, target in moves:
@@ -328,8 +330,23 @@ def run_experiment(config, out, defaults=None, overrides=None):
     for moved, note in notes:
         if moved.exists():  # an output key the runner does not use leaves nothing
             print(note, file=sys.stderr)
+    _note_unused_figure_dir(config, defaults, result, staging.filled)
     print(f"wrote {Path(out) / 'result.json'}", file=sys.stderr)
     return payload
+
+
+def _note_unused_figure_dir(config, defaults, result, filled):
+    """A note when ``figure_dir`` was set (unlike the experiment's own config) but the run
+    drew its figures elsewhere (a user's sequence: ``out/figures``), not silently."""
+    value = config.get("figure_dir")
+    figures = [Path(p) for p in result.get("figures") or [] if isinstance(p, str)]
+    if (not value or not figures or value == (defaults or {}).get("figure_dir")
+            or any(Path(value) == folder or Path(value) in folder.parents
+                   for folder in filled)):
+        return
+    print(f"note: figure_dir={value} got no figure: this run drew them in "
+          f"{figures[0].parent} (figure_dir is for the experiment's default data)",
+          file=sys.stderr)
 
 
 def _error(message, status=2):
@@ -793,6 +810,12 @@ def _hydra_message(error, overrides=()):
         return (f"{line}: Hydra cannot read this value unquoted (characters such as accented "
                 f"letters need quotes); quote it: {key}={spelled}"
                 + (" (each value of a sweep quoted on its own)" if "," in value else ""))
+    if text.startswith("Ambiguous value for argument '"):
+        line = text.split("\n", 1)[0].split("'", 1)[1].rsplit("'", 1)[0]
+        key, _, value = line.partition("=")
+        return (f"{line}: a comma makes the value a list or, with -m, a sweep; for one "
+                f"value with a comma, quote it for Hydra inside the shell's quotes: "
+                f"\"{key}='{value}'\" (a list: {key}=[A,B]; a sweep: replicate -m {line})")
     if "ConfigLoader is not set" in text:
         return ("glob(...) chooses among config-group options in a sweep, not files: list "
                 "the files instead (-m data.path=A.npz,B.npz)")
@@ -984,6 +1007,7 @@ def compose_first_job(args):
                                    return_hydra_config=True).hydra
             _check_sweep_settings(hydra_config, launcher, longest)
             sweep_dir = str(hydra_config.sweep.dir)
+            _check_shared_folders(compose, hydra_config, sweep_dir, swept, jobs, launcher)
             if any(line.startswith("experiment=") for _, line in swept):
                 _check_shared_keys(plain, compose(config_name="config"))
             owns, own = {}, None
@@ -1004,6 +1028,33 @@ def compose_first_job(args):
     except (HydraException, ValueError) as error:   # the override parser's refusals
         raise InputError(_hydra_message(error, list(args))) from None
     return sweep_dir
+
+
+def _check_shared_folders(compose, hydra_config, sweep_dir, swept, jobs, launcher):
+    """Refuse a sweep over a key that job folder names leave out (``experiment``,
+    ``progress``, the limits: ``hydra.job.config.override_dirname.exclude_keys``) when its
+    jobs would share one sweep folder: they would also share job folders, and only the
+    last result would stay. ``experiment=a,b`` is safe in the default ``multirun/${name}``
+    (a folder per experiment), not in one ``hydra.sweep.dir``."""
+    if any(line.split("=", 1)[0] == "hydra.sweep.subdir" for line in launcher):
+        return
+    if any(line.split("=", 1)[0].lstrip("+~") == "out" for line in jobs[0]):
+        return   # each job writes its own out (a fixed one is refused on its own)
+    excluded = set(hydra_config.job.config.override_dirname.exclude_keys)
+    for (index, line), job in zip(swept, jobs[1:]):
+        key = line.split("=", 1)[0].lstrip("+~")
+        if key not in excluded:
+            continue
+        other = str(compose(config_name="config", overrides=job + launcher,
+                            return_hydra_config=True).hydra.sweep.dir)
+        if other == sweep_dir:
+            raise InputError(
+                f"{key} swept into one folder ({sweep_dir}): job folders are named by the "
+                f"other overrides, {key} left out, so {jobs[0][index]} and {line} would "
+                "write the same job folders and only the last result would stay; sweep "
+                f"into a folder per value (the default multirun/${{name}}, or "
+                f"hydra.sweep.dir=DIR/${{{key}}}), or name job folders by number: "
+                "hydra.sweep.subdir='${hydra.job.num}'")
 
 
 def _check_shared_keys(keys, root):

@@ -20,3 +20,12 @@ def check(condition, message):
     """
     if not condition:
         raise InputError(message)
+
+
+def one_line_error(message):
+    """An ``argparse`` parser's ``error``: its refusal as one ``error:`` line and exit
+    status 2 (argparse prints its usage first). ``parser.error = one_line_error``."""
+    import sys
+
+    print(f"error: {message}", file=sys.stderr)
+    raise SystemExit(2)

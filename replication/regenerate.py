@@ -32,7 +32,7 @@ from pathlib import Path
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
-from replication.errors import InputError
+from replication.errors import InputError, one_line_error
 from replication.progress import ENVIRONMENT, MODES, bar, check_environment, mode_for
 from replication.provenance import PROJECT_ROOT, inputs_hash, run_provenance
 from replication.report.build import CONFIG_DIR, build_report, experiment_entries
@@ -415,7 +415,11 @@ def _main(argv=None):
                         help="list the experiments a run would recompute and why (config, "
                              "code or inputs changed, no result, an experiment it depends "
                              "on), then stop; runs and writes nothing")
+    parser.error = one_line_error
     args = parser.parse_args(argv)
+    if not args.results.strip():
+        print("error: --results='': expected a folder (default results/)", file=sys.stderr)
+        return 2
     if args.jobs < 1:
         print(f"error: --jobs={args.jobs}: expected at least 1", file=sys.stderr)
         return 2

@@ -576,12 +576,20 @@ def _main(argv=None):
                              "that varies, other than seed")
     parser.add_argument("--no-plots", action="store_true",
                         help="write the CSV only")
+    from replication.errors import one_line_error
+
+    parser.error = one_line_error
     args = parser.parse_args(argv)
     sweep_dir = Path(args.sweep_dir)
     if not sweep_dir.is_dir():
         found = "is a file" if sweep_dir.exists() else "no such folder"
         print(f"error: {sweep_dir}: {found}; expected a sweep folder (multirun/NAME, "
               "with one result.json per run below it)", file=sys.stderr)
+        return 2
+    if (sweep_dir / "result.json").is_file():
+        print(f"error: {sweep_dir}: a single run's folder (its result.json is in it, not "
+              "below it); expected a sweep folder (multirun/NAME, with one result.json per "
+              "run below it)", file=sys.stderr)
         return 2
     output = Path(args.output) if args.output else sweep_dir / "results.csv"
     if output.name == "result.json":

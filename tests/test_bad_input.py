@@ -297,6 +297,9 @@ CONFIG_CASES = [
      "method.snake.iterations=-1: expected an integer >= 1"),
     ("segment_multi", ["method.accumulation.cell=-2.0"], "expected a finite number >= 0"),
     ("nope", [], "experiment=nope: unknown experiment"),
+    ("motion_single", ["data.path=/x/a,b"], "data.path=/x/a,b: a comma makes the value a "
+     "list or, with -m, a sweep; for one value with a comma, quote it for Hydra inside the "
+     "shell's quotes: \"data.path='/x/a,b'\""),
 ]
 
 

@@ -244,6 +244,22 @@ def test_sweep_refusals_come_before_any_job(args, message):
         compose_first_job(legit)
 
 
+def test_a_sweep_over_experiments_into_one_folder_is_refused(tmp_path):
+    """An outside user's experiment=cloth_identify,cloth_ci seed=0,1 into one
+    hydra.sweep.dir wrote seed=0/ twice: job folders leave the experiment out, and only
+    cloth_ci's results stayed."""
+    from replication.cli import compose_first_job
+
+    with pytest.raises(InputError, match="experiment swept into one folder"):
+        compose_first_job(["experiment=cloth_identify,cloth_ci", "seed=0,1",
+                           f"hydra.sweep.dir={tmp_path}"])
+    # the default sweep folder is one per experiment; job folders by number are distinct
+    compose_first_job(["experiment=cloth_identify,cloth_ci", "seed=0,1"])
+    compose_first_job(["experiment=cloth_identify,cloth_ci", "seed=0,1",
+                       f"hydra.sweep.dir={tmp_path}", "hydra.sweep.subdir=${hydra.job.num}"])
+    assert os.listdir(tmp_path) == []
+
+
 def test_glob_of_files_gets_a_hint():
     from replication.cli import compose_first_job
 
@@ -295,3 +311,22 @@ def test_an_unknown_option_is_one_line_with_the_close_one():
     assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
     assert done.stderr.startswith("error: unknown option(s) --strictt")
     assert "did you mean --strict?" in done.stderr
+
+
+def test_a_figure_dir_that_got_no_figure_is_noted(tmp_path, capsys):
+    """An outside user's figure_dir= with data.path was ignored silently (a user's
+    sequence draws its figures in out/figures)."""
+    from replication.cli import _note_unused_figure_dir
+
+    result = {"figures": [str(tmp_path / "out" / "figures" / "fig01.png")]}
+    defaults = {"figure_dir": "figures"}
+    _note_unused_figure_dir({"figure_dir": str(tmp_path / "mine")}, defaults, result,
+                            {tmp_path / "out" / "figures", tmp_path / "out"})
+    err = capsys.readouterr().err
+    assert err.startswith(f"note: figure_dir={tmp_path / 'mine'} got no figure: this run drew "
+                          f"them in {tmp_path / 'out' / 'figures'}")
+    # figures drawn there, or figure_dir as the experiment's own: no note
+    _note_unused_figure_dir({"figure_dir": str(tmp_path / "mine")}, defaults, result,
+                            {tmp_path / "mine"})
+    _note_unused_figure_dir({"figure_dir": "figures"}, defaults, result, set())
+    assert capsys.readouterr().err == ""

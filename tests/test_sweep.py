@@ -75,6 +75,11 @@ def test_gather_refuses_empty_folder(tmp_path, capsys):
     sweep = fake_sweep(tmp_path / "sweep", sweep_metrics=["best.cost"])
     assert gather_main([str(sweep), "--output", str(tmp_path / "absent" / "x.csv")]) == 2
     assert f"no folder {tmp_path / 'absent'}" in capsys.readouterr().err
+    # a single run's folder (its result.json in it) is not a sweep: refused, not gathered
+    run = next(sweep.rglob("result.json")).parent
+    capsys.readouterr()
+    assert gather_main([str(run)]) == 2 and not (run / "results.csv").exists()
+    assert "a single run's folder" in capsys.readouterr().err
     assert gather_main([str(sweep), "--no-plots"]) == 0
     assert (sweep / "results.csv").exists() and not list(sweep.glob("*.png"))
     assert gather_main([str(sweep)]) == 0 and list(sweep.glob("*.png"))   # plots by default

@@ -26,7 +26,8 @@ import numpy as np
 from scipy.stats import chi2
 
 from replication.cloth import regression
-from replication.cloth.identify.problem import meaningless_noise_warning
+from replication.cloth.identify.problem import (meaningless_noise_warning, motion_and_noise,
+                                                still_cloth_warning)
 from replication.discrepancy import effects as fx
 from replication.discrepancy.gap import (
     STARTS,
@@ -388,9 +389,11 @@ def detection_limit(data, mask, sigma_h, frames):
     so the limit is too."""
     used = max(int(np.count_nonzero(_used(data, frames, mask))), 1)
     displacement_h = DETECTION_SNR * np.sqrt(6.0) * sigma_h / np.sqrt(used)
-    share = displacement_h * data.h / (data.scene.dt ** 2 * np.linalg.norm(data.scene.gravity))
+    weight = data.scene.dt ** 2 * np.linalg.norm(data.scene.gravity)
+    # without gravity there is no weight to compare with: None
+    share = float(displacement_h * data.h / weight) if weight > 0 else None
     return {"snr": DETECTION_SNR, "particle_frames": used,
-            "displacement_h": float(displacement_h), "share_of_weight": float(share)}
+            "displacement_h": float(displacement_h), "share_of_weight": share}
 
 
 def generalisation(data, fit, frames, held, sigma_h):
@@ -456,6 +459,9 @@ def _warnings(data, base_fit, located, named_effects, gap_before, gap_after, lim
     held-out gap little, an anisotropic stiffness without anisotropy, a body force that
     looks like a unit or time-step mistake."""
     warnings = []
+    still = still_cloth_warning(*motion_and_noise(data))
+    if still is not None:
+        warnings.append(still)
     meaningless = meaningless_noise_warning(located.get("noise_sigma_h", 0.0))
     if meaningless is not None:
         warnings.append(meaningless)
@@ -497,17 +503,17 @@ def _warnings(data, base_fit, located, named_effects, gap_before, gap_after, lim
             f"{gap_before / gap_after:.3g}-fold ({gap_before:.3g} -> {gap_after:.3g} h): "
             "treat the name(s) as tentative; an effect outside the library may be acting")
     # (not worded like LIMIT_CAVEAT: the outside study tells the caveat from warnings by it)
-    excess = located.get("excess_power", 0.0)
-    if not named_effects and unexplained is None and excess > QUIET_EXCESS:
+    if (unexplained or {}).get("excess_power") is not None:
+        excess = unexplained["excess_power"]
         warnings.append(
             f"the base model's one-step residuals are {excess:.3g} x what the noise "
-            "explains, yet nothing is named or unexplained: there is no structure on the "
-            "particle-frames the constraint leaves alone (all the structure test reads), so "
-            "the misfit is where the constraint acts (a tau the base fit misses) or has no "
-            "structure (frames out of order, another dt); 'nothing missing' holds only "
-            "outside the constraint")
+            "explains, yet nothing is named and the structure test finds nothing: there is "
+            "no structure on the particle-frames the constraint leaves alone (all the "
+            "structure test reads), so the misfit is where the constraint acts (a tau the "
+            "base fit misses, anchors that move) or has no structure (frames out of order, "
+            "another dt); reported as unexplained (unexplained.excess_power)")
     if (limit is not None and not named_effects and unexplained is None
-            and limit["share_of_weight"] > MENTION_LIMIT):
+            and (limit["share_of_weight"] or 0.0) > MENTION_LIMIT):
         warnings.append(
             f"{LIMIT_CAVEAT}; at this noise ({located['noise_sigma_h']:.2g} h) the "
             f"detection limit of the outside study (SNR {limit['snr']:g}) is an effect of "
@@ -661,6 +667,17 @@ def analyse(trajectory, config=None, *, rng=None):
                        "note": ("structured residual above the noise floor that no library "
                                 "effect explains" if not selected else
                                 "structure remains after the named effects")}
+    excess = located.get("excess_power", 0.0)
+    if not selected and unexplained is None and excess > QUIET_EXCESS:
+        # no structure where the test looks, yet the base model misses the data far
+        # beyond the noise: where the constraint acts, or without structure (a moving
+        # anchor, frames out of order, another dt); no library effect explains that
+        unexplained = {"Q": q_current, "q_threshold": settings["q_threshold"],
+                       "remaining_fraction": 1.0, "excess_power": float(excess),
+                       "time_windows_s": [], "patches": [], "patch_side": settings["patch"],
+                       "note": ("one-step residuals far above the noise where the constraint "
+                                "acts or without structure, which no library effect "
+                                "explains")}
     return {
         "named_effects": named_effects,
         "n_frames": int(data.n_frames),

@@ -139,6 +139,13 @@ def centre_spread(estimate):
     return None if spread is None else float(np.hypot(spread["xi_sd"], spread["eta_sd"]))
 
 
+def figure_folder(config, out, default):
+    """Where a one-sequence experiment draws its figures: ``figure_dir`` for its own
+    default data, else ``out/figures``, so that a user's sequence never overwrites the
+    committed figures (``replicate`` notes a ``figure_dir`` that got no figure)."""
+    return Path(config.get("figure_dir") or "figures") if default else Path(out) / "figures"
+
+
 def check_motion(sequence):
     """Refuse a sequence whose frames are all identical: there is no motion to find."""
     frames = sequence.frames

@@ -6,14 +6,15 @@ which import no figure: a change to Figs. 1-4 makes only this experiment stale.
 
 from __future__ import annotations
 
+import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
 from replication.experiments.motion import (
     EDGE_CELLS,
     centre_spread,
+    figure_folder,
     spread_allowed,
     _check_settings,
     _load,
@@ -203,6 +204,9 @@ def _top_level(sequence, found):
     return pyramid.sequence_on_level(sequence, top["frames"], factor), shown
 
 
+LARGE_EXACT_PIXELS = 512 * 512   # frames above this get the pyramid's note
+
+
 def _pyramid_summary(found):
     """``pyramid`` of ``result.json``: factor, level shapes and the answer on each level."""
     info = found["pyramid"]
@@ -230,6 +234,12 @@ def single_rotation(config, out):
     check_border(sequence, settings["sigma"])
     if settings["accumulation"] == "exact":
         check_grid(sequence.frames.shape[1:], settings)
+        if np.prod(sequence.frames.shape[1:3]) > LARGE_EXACT_PIXELS:
+            # the exact accumulation's cost grows with about the cube of the side
+            # (REPORT.md, cost growth): minutes from about 1024 x 1024 on
+            print("note: frames this large take minutes with the paper's exact "
+                  "accumulation; method.accumulation=pyramid takes seconds at the same "
+                  "accuracy (docs/experiments.md, motion_single)", file=sys.stderr)
     single.warm_up()
     found = (single.find_rotation(sequence.frames, settings)
              if settings["accumulation"] == "pyramid"
@@ -259,8 +269,7 @@ def single_rotation(config, out):
         result["errors"] = {"paper": single.errors(paper, truth),
                             "refined": single.errors(refined, truth)}
     if config.get("figures", True):
-        figure_dir = Path(config.get("figure_dir", "figures")) if given is None \
-            else Path(out) / "figures"
+        figure_dir = figure_folder(config, out, given is None)
         shown = (sequence, found) if "pyramid" not in found else _top_level(sequence, found)
         result["figures"] = _draw_figures(*shown, settings, figure_dir)
     return result

@@ -12,12 +12,12 @@ from pathlib import Path
 import numpy as np
 
 from replication.errors import check
-from replication.experiments.motion import EDGE_CELLS, check_border, check_motion
+from replication.experiments.motion import (EDGE_CELLS, check_border, check_motion,
+                                             figure_folder)
 from replication.experiments.segment import _load, score_objects
 from replication.motion.frame_checks import frame_checks
 from replication.progress import progress
 
-FIGURE_DIR = Path("figures")
 
 
 def write_mask(path, mask):
@@ -101,6 +101,65 @@ def translation_warnings(frames, settings, pixels=None):
     return []
 
 
+BLOCK = 16              # side (px) of the blocks the moving-pixel check counts in
+BLOCK_MOVING = 0.5      # a block moves when this share of its selected pixels moves
+UNCOVERED_SHARE = 0.2   # moving blocks outside every object above this share are warned
+
+
+def motion_outside_warnings(frames, found, settings, pixels=None):
+    """A warning when moving parts of the frame lie outside every object found: an object
+    turning faster or slower than the omega sweep, or moving otherwise, is missed silently
+    (its pixels belong to no region), and when no object is found at all.
+
+    Pixels move when their normal flow ``|It| / |grad I|`` is at least the snake's
+    ``tolerance``; noise makes single pixels move, so the check counts blocks of
+    :data:`BLOCK` px in which at least :data:`BLOCK_MOVING` of the selected pixels move,
+    and a block is covered when an object's mask (grown by one block) reaches its centre.
+    ``pixels``: the full-resolution derivatives when the caller has them."""
+    from scipy import ndimage
+
+    from replication.motion.derivatives import sequence_derivatives
+
+    ea = settings["ea"]
+    if pixels is None:
+        pixels = sequence_derivatives(frames, sigma=ea["sigma"],
+                                      relative_threshold=ea["relative_threshold"])
+    height, width = frames.shape[1:3]
+    shape = (-(-height // BLOCK), -(-width // BLOCK))
+    if len(pixels) == 0:
+        return []
+    moving = np.abs(pixels.gt) / pixels.gradient_norm >= settings["snake"]["tolerance"]
+    cell = (np.asarray(pixels.y, int) // BLOCK) * shape[1] + np.asarray(pixels.x, int) // BLOCK
+    selected = np.bincount(cell, minlength=shape[0] * shape[1])
+    moved = np.bincount(cell, weights=moving, minlength=shape[0] * shape[1])
+    blocks = (selected > 0) & (moved >= BLOCK_MOVING * np.maximum(selected, 1))
+    if not blocks.any():
+        return ([] if found["objects"] else
+                ["no rotating object found, and no part of the frame moves beyond single "
+                 "pixels (a still scene, or noise only)"])
+    covered = np.zeros((height, width), dtype=bool)
+    for item in found["objects"]:
+        covered |= np.asarray(item["mask"], dtype=bool)
+    covered = ndimage.binary_dilation(covered, iterations=BLOCK) if covered.any() else covered
+    centres_y = np.minimum(np.arange(shape[0]) * BLOCK + BLOCK // 2, height - 1)
+    centres_x = np.minimum(np.arange(shape[1]) * BLOCK + BLOCK // 2, width - 1)
+    inside = covered[np.ix_(centres_y, centres_x)].ravel()
+    outside = blocks & ~inside
+    share = np.count_nonzero(outside) / np.count_nonzero(blocks)
+    if not found["objects"]:
+        return [f"no rotating object found, yet {np.count_nonzero(blocks)} block(s) of "
+                f"{BLOCK} x {BLOCK} px move: an object may turn faster or slower than the "
+                "omega bounds (method.ea.omega_min, method.ea.omega_max) or "
+                "move otherwise (a translation, a deformation), or noise moves them"]
+    if share <= UNCOVERED_SHARE:
+        return []
+    return [f"{100 * share:.0f}% of the moving blocks of {BLOCK} x {BLOCK} px "
+            f"({np.count_nonzero(outside)} of {np.count_nonzero(blocks)}) lie outside every "
+            "object found: another object may turn faster or slower than the omega bounds "
+            "(method.ea.omega_min, method.ea.omega_max) or move otherwise (a translation, a "
+            "deformation), and is missed (or noise moves them)"]
+
+
 def edge_warnings(found, settings):
     """A warning per object whose centre is at the edge of its restricted accumulation
     (the region's bounding box plus ``accumulation.window``, within the image plus
@@ -174,6 +233,8 @@ def segment_sequence(config, out):
     result["warnings"] = translation_warnings(
         sequence.frames, settings, None if "pyramid" in found else found["pixels"])
     result["warnings"] += edge_warnings(found, settings)
+    result["warnings"] += motion_outside_warnings(
+        sequence.frames, found, settings, None if "pyramid" in found else found["pixels"])
     # what the IRC equation assumes of the whole frame: motion_single's checks
     checks = frame_checks(sequence.frames, sigma=settings["ea"]["sigma"])
     result["warnings"] += checks["warnings"]
@@ -183,12 +244,16 @@ def segment_sequence(config, out):
                              "shapes": found["pyramid"]["shapes"],
                              "objects": [{"top": item.get("top"), "levels": item.get("levels")}
                                          for item in found["objects"]]}
+    if "objects" in (sequence.truth or {}) and sequence.labels is None:
+        result["warnings"].append(
+            f"the truth names {len(sequence.truth['objects'])} object(s) but the sequence "
+            "has no label masks (labels_*.png in a folder, a labels array in an .npz; "
+            "docs/data-formats.md): nothing is scored")
     if scored:
         result["truth"] = sequence.truth["objects"]
         result["score"] = score_objects(found["objects"], sequence.labels[0], sequence.truth)
     if config.get("figures", True):
-        figure_dir = Path(config.get("figure_dir") or FIGURE_DIR) if default \
-            else Path(out) / "figures"
+        figure_dir = figure_folder(config, out, default)
         shown = (sequence, found)
         if "pyramid" in found:
             shown = (pyramid.sequence_on_level(sequence, found["pyramid"]["frames"],

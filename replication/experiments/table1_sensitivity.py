@@ -318,7 +318,7 @@ def sensitivity_study(config, out):
                    for k, s in table1_2["success"].items() if k in baseline["references"])
     figures = [figure.plot(axes, labels, goal=goal, rtol=table1_2["success_rtol"],
                            out_name=config["figure"], figure_dir=config["figure_dir"])]
-    return {
+    result = {
         **result,
         "axes": axes,
         "rows": rows,
@@ -340,4 +340,14 @@ def sensitivity_study(config, out):
         "staleness": staleness(readings, config["reading_experiment"]),
         "figures": figures,
     }
+    stale = result["staleness"]
+    if stale["n_stale"]:
+        reasons = ", ".join(f"{key} {stale[key]}" for key in
+                            ("code", "config", "inputs", "no_provenance") if stale[key])
+        result["warnings"] = [
+            f"{stale['n_stale']} of {stale['n_runs']} runs of {config['data_file']} were "
+            f"made by other code, config or input files than the current ones ({reasons}): "
+            "its numbers are not this code's; re-run the sweep (the result's `commands`) "
+            "and gather it again"]
+    return result
 

@@ -83,13 +83,21 @@ def plain_step(x, v, rest, k, tau, n, pinned, mass, gravity, damping, dt):
 
 
 def plain_run(n_steps, rest, k, tau, n=17, side=1.5, pinned=((0, 0), (0, 16)), mass=0.001,
-              gravity=(0.0, 0.0, -9.81), damping=0.0, dt=0.002):
-    """Roll the plain model out from the flat sheet; returns the list of position frames."""
+              gravity=(0.0, 0.0, -9.81), damping=0.0, dt=0.002, pin_path=None):
+    """Roll the plain model out from the flat sheet; returns the list of position frames.
+
+    ``pin_path(step) -> (dx, dy, dz)``: anchors that move (not in the contract): after
+    each step the pinned particles are placed at their start plus that offset."""
     h = side / (n - 1)
     x = [[j * h, i * h, 0.0] for i in range(n) for j in range(n)]
+    start = [list(p) for p in x]
     v = [[0.0, 0.0, 0.0] for _ in range(n * n)]
     frames = [x]
-    for _ in range(n_steps):
+    for step in range(n_steps):
         x, v = plain_step(x, v, rest, k, tau, n, pinned, mass, gravity, damping, dt)
+        if pin_path is not None:
+            offset = pin_path(step + 1)
+            for i, j in pinned:
+                x[i * n + j] = [start[i * n + j][c] + offset[c] for c in range(3)]
         frames.append(x)
     return frames

@@ -198,3 +198,26 @@ def test_too_few_frames_for_a_fourth_difference_give_no_data_noise(runs):
     found = problem.residual_fit(cost, np.array([H, H * math.sqrt(2), 2 * H, 4.0, 0.01]))
     assert found["data_noise_h"] is None and found["robust_misfit"] is None
     assert np.isfinite(found["misfit"])
+
+
+def test_a_cloth_at_rest_with_noise_is_warned_as_meaningless(runs):
+    """An outside user's cloth at rest (its first frame held, plus noise of 1e-3 h) came out
+    with K=9.87 and no warning beyond tau at its bound: the frames determine nothing."""
+    rng = np.random.default_rng(7)
+    still = np.repeat(runs[0.01][:1], len(runs[0.01]), axis=0)
+    still = still + 1e-3 * H * rng.standard_normal(still.shape)
+    still[:, [0, N - 1]] = runs[0.01][:1, [0, N - 1]]
+    found, warnings = _diagnose(_write(runs["folder"] / "still.npz", still), 4.0, 0.01)
+    assert found["motion_h"] == pytest.approx(1e-3, rel=0.3)
+    assert found["position_noise_h"] == pytest.approx(1e-3, rel=0.3)
+    assert any(w.startswith("the free particles move") and "the answer means nothing" in w
+               for w in warnings)
+
+
+def test_a_moving_cloth_is_not_warned_as_still_even_under_noise(runs):
+    rng = np.random.default_rng(8)
+    noisy = runs[0.01] + 3e-3 * H * rng.standard_normal(runs[0.01].shape)
+    noisy[:, [0, N - 1]] = runs[0.01][:, [0, N - 1]]
+    found, warnings = _diagnose(_write(runs["folder"] / "moving.npz", noisy), 4.0, 0.01)
+    assert found["motion_h"] > 20 * found["position_noise_h"]
+    assert not any(w.startswith("the free particles move") for w in warnings)

@@ -83,3 +83,49 @@ def test_positions_in_mm_name_the_body_force_and_nothing_from_round_off(tmp_path
         evidence = tried["evidence"]
         if evidence["displacement_h"] < 1e3 * evidence["roundoff_h"]:
             assert not tried["confirmed"]
+
+
+def test_a_cloth_at_rest_is_warned_by_the_check_cloth_identify_uses(tmp_path):
+    """An outside user's cloth at rest with noise got a 12276 h 'gap', nothing named and no
+    warning (and a divide-by-zero from the detection limit without gravity)."""
+    made = og.make({"n_frames": 100, "K": 4.0, "tau": 0.3, "noise_h": 0.0, "seed": 5,
+                    "effects": []})
+    rest = np.repeat(made["positions"][:1], 100, axis=0)
+    rng = np.random.default_rng(1)
+    free = og.FREE.reshape(rest.shape[1:3])
+    rest[:, free] += 1e-3 * og.H * rng.standard_normal(rest[:, free].shape)
+    made["positions"], made["gravity"] = rest, np.zeros(3)
+    path = tmp_path / "rest.npz"
+    og.write_npz(path, made)
+    with np.errstate(all="raise"):
+        result = analyse(read_trajectory(path), {"n_subsamples": 10}, rng=0)
+    assert any(w.startswith("the free particles move") and "means nothing" in w
+               for w in result["warnings"])
+    assert result["detection_limit"]["share_of_weight"] is None
+
+
+def test_a_misfit_without_structure_is_reported_unexplained(tmp_path):
+    """An outside user's moving anchor left residuals 9e5 x the noise with nothing named
+    and `unexplained: null`: a reader of the keys took the model for complete. Anchors that
+    swing (the plain implementation of the contract, pins moved after each step) over a
+    sheet the constraint holds: the misfit is where the constraint acts."""
+    import math
+
+    from tests.cloth.plain_reference import plain_run
+
+    n, side = 9, 0.75
+    h = side / (n - 1)
+    rest = [h, h, h * math.sqrt(2), h * math.sqrt(2), 2 * h, 2 * h]
+    frames = plain_run(149, rest, [4.0] * 6, [0.05] * 6, n=n, side=side,
+                       pinned=((0, 0), (0, n - 1)),
+                       pin_path=lambda s: (0.0, 0.4 * h * math.sin(2 * math.pi * s / 60), 0.0))
+    path = tmp_path / "anchor.npz"
+    np.savez(path, positions=np.array(frames).reshape(-1, n, n, 3), dt=np.float64(0.002),
+             mass=np.float64(0.001), gravity=np.array([0.0, 0.0, -9.81]),
+             pinned=np.array([[0, 0], [0, n - 1]]))
+    result = analyse(read_trajectory(path), {"n_subsamples": 10}, rng=0)
+    assert result["named_effects"] == []
+    assert result["unexplained"] is not None
+    assert result["unexplained"]["excess_power"] > 1e3
+    assert any("reported as unexplained (unexplained.excess_power)" in w
+               for w in result["warnings"])

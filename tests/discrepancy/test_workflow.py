@@ -244,20 +244,20 @@ def test_a_base_misfit_without_structure_is_warned_when_nothing_is_named(clean_t
     was 3e-4 off) got 'nothing missing' with no warning, their residuals 5e4 x the noise
     lying where the constraint acts or without structure."""
     from replication.cloth import regression
-    from replication.discrepancy.workflow import LIMIT_CAVEAT, QUIET_EXCESS, _warnings
+    from replication.discrepancy.workflow import LIMIT_CAVEAT, _warnings
 
     data = regression.prepare(clean_trajectory)
     fit = regression.fit(data, np.arange(5, 90, 5))
     quiet = {"mask_dropped": False, "excess_power": 5e4}
-    warned = _warnings(data, fit, quiet, [], 1.0, 1.0)
+    # analyse reports such a misfit as unexplained, with its excess power (no windows)
+    misfit = {"Q": 1.0, "excess_power": 5e4, "time_windows_s": [], "patches": []}
+    warned = _warnings(data, fit, quiet, [], 1.0, 1.0, unexplained=misfit)
     assert warned[0].startswith("the base model's one-step residuals are 5e+04 x what the "
-                                "noise explains, yet nothing is named or unexplained")
+                                "noise explains, yet nothing is named and the structure test "
+                                "finds nothing")
+    assert warned[0].endswith("reported as unexplained (unexplained.excess_power)")
     assert not warned[0].startswith(LIMIT_CAVEAT)   # the outside study counts it as a warning
-    # at the noise floor, or with an effect named or structure unexplained: no such line
-    assert _warnings(data, fit, dict(quiet, excess_power=QUIET_EXCESS), [], 1.0, 1.0) == []
-    named = [{"name": "linear_damping", "parameters": {"coefficients": {"c": 1e-4}}}]
-    assert not any("yet nothing is named" in w for w in
-                   _warnings(data, fit, quiet, named, 2.0, 1.0))
+    # structure unexplained (no excess_power: the structure test found it): no such line
     assert not any("yet nothing is named" in w for w in
                    _warnings(data, fit, quiet, [], 1.0, 1.0, unexplained={"Q": 9.0}))
 

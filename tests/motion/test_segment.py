@@ -338,3 +338,40 @@ def test_a_camera_pan_is_warned_about_and_a_rotation_is_not():
     warned = translation_warnings(pan, settings)
     assert len(warned) == 1 and "one translation (1" in warned[0]
     assert translation_warnings(turn, settings) == []
+
+
+def _turning_disc(omega, *, side=128, radius=30, frames=3, noise=0.0, seed=0):
+    """A smooth random texture whose disc about the centre turns by ``omega`` rad/frame
+    (scipy's rotation, nothing of the suite) over a still background."""
+    from scipy import ndimage
+
+    rng = np.random.default_rng(seed)
+    texture = ndimage.gaussian_filter(rng.random((side, side)), 2.0) * 255
+    yy, xx = np.mgrid[:side, :side]
+    disc = (xx - side / 2) ** 2 + (yy - side / 2) ** 2 <= radius ** 2
+    out = []
+    for t in range(frames):
+        turned = ndimage.rotate(texture, np.degrees(omega * t), reshape=False, order=3)
+        frame = np.where(disc, turned, texture) + noise * rng.standard_normal((side, side))
+        out.append(frame)
+    return np.array(out), disc
+
+
+def test_moving_blocks_outside_every_object_are_warned():
+    """An outside user's disc turning at 0.15 rad/frame, beyond the omega bounds, was
+    missed without a word; a still scene got an empty object list without one."""
+    from replication.experiments.segment_multi import motion_outside_warnings
+
+    settings = segmentation.settings_from(None)
+    frames, disc = _turning_disc(0.15)
+    missed = motion_outside_warnings(frames, {"objects": []}, settings)
+    assert len(missed) == 1 and missed[0].startswith("no rotating object found, yet")
+    assert motion_outside_warnings(frames, {"objects": [{"mask": disc}]}, settings) == []
+    other = np.zeros_like(disc)
+    other[:20, :20] = True
+    partly = motion_outside_warnings(frames, {"objects": [{"mask": other}]}, settings)
+    assert len(partly) == 1 and "lie outside every object found" in partly[0]
+    still, _ = _turning_disc(0.0, noise=1.0)
+    assert motion_outside_warnings(still, {"objects": []}, settings) == [
+        "no rotating object found, and no part of the frame moves beyond single pixels (a "
+        "still scene, or noise only)"]

@@ -193,6 +193,7 @@ def cloth_objective(cost, space, *, budget=None, with_residuals=False):
 
 # what an answer's diagnostics warn about (docs/experiments.md, "Warnings of an answer")
 NOISE_WARN_H = 3e-4   # estimated position noise (units of h) above which answers are biased
+NOISE_STRONG_H = 3e-3  # ... above which K is tens of % off and tau near its own size
 MEANINGLESS_NOISE_H = 0.1   # ... above which the frames show no motion step to step
 MISFIT_WARN = 3.0     # residuals this many times what the estimated noise explains
 _MARGIN = 10          # frames on each side of the cost's frames for the residual check
@@ -266,6 +267,9 @@ def residual_fit(cost, best):
       (some particles 100 x noisier than the rest) raises it too: the noisy particles'
       springs pass their noise to their neighbours' residuals.
     - ``residual_frames``: the first and last frame of those residuals.
+    - ``motion_h`` and ``position_noise_h``: how far the free particles move over all
+      frames and the noise the data show, model-free (:func:`motion_and_noise`); a cloth
+      that moves no more than its noise determines nothing (:func:`still_cloth_warning`).
 
     Parameters
     ----------
@@ -299,9 +303,11 @@ def _residual_fit(cost, best):
         robust = ((max(typical, floor) / max(data_sigma, floor)) ** 2
                   if typical > floor else 0.0)
         data_h = data_sigma / data.h
+    motion_h, noise_h = motion_and_noise(data)
     return sigma, {"noise_h": sigma / data.h, "misfit": excess_power(r, data.free, sigma),
                    "data_noise_h": data_h, "robust_misfit": robust,
-                   "residual_frames": [int(frames[0]), int(frames[-1])]}
+                   "residual_frames": [int(frames[0]), int(frames[-1])],
+                   "motion_h": motion_h, "position_noise_h": noise_h}
 
 
 def meaningless_noise_warning(noise_h):
@@ -319,6 +325,38 @@ def meaningless_noise_warning(noise_h):
             "do not show one cloth's motion step to step (frames out of order or from "
             "different runs, another dt, positions in other units?); the answer means "
             "nothing")
+
+
+STILL_FACTOR = 5.0    # free particles moving less than this many noise sds show no motion
+
+
+def motion_and_noise(data):
+    """``(motion_h, noise_h)``: the free particles' RMS displacement about their mean
+    positions over all frames (the median over particles) and the position noise the data
+    show without a model (:func:`replication.cloth.regression.position_noise`), both in
+    units of ``h``; white noise alone gives about one noise sd of motion.
+
+    Parameters
+    ----------
+    data : regression.Data
+    """
+    x = data.x[:, data.free]
+    motion = float(np.median(np.sqrt(np.mean((x - x.mean(axis=0)) ** 2, axis=(0, 2)))))
+    return motion / data.h, regression.position_noise(data) / data.h
+
+
+def still_cloth_warning(motion_h, noise_h):
+    """The warning that the frames show no motion beyond the position noise
+    (:func:`motion_and_noise`), or None: a cloth at rest (or noise only) moves less than
+    :data:`STILL_FACTOR` noise sds, and no parameter is determined by such frames whatever
+    a fit returns. One check for every workflow that fits the cloth model (frames
+    identical to the last bit are refused when the file is read)."""
+    if motion_h > STILL_FACTOR * noise_h:
+        return None
+    return (f"the free particles move {motion_h:.2g} h RMS about their mean positions over "
+            f"the frames, no more than {STILL_FACTOR:g} x the position noise the data show "
+            f"({noise_h:.2g} h): the frames show no motion that determines the parameters "
+            "(a cloth at rest, or noise only); the answer means nothing")
 
 
 def diagnostic_warnings(diagnostics, best, names):
@@ -340,7 +378,9 @@ def diagnostic_warnings(diagnostics, best, names):
     if diagnostics["misfit"] > MISFIT_WARN:
         warnings.append(
             f"the model at these parameters leaves one-step residuals "
-            f"{diagnostics['misfit']:.3g} x what the position noise explains: the answer "
+            f"{diagnostics['misfit']:.3g} x what the position noise explains (in power; "
+            f"{np.sqrt(6.0 * diagnostics['misfit']) * diagnostics['noise_h']:.2g} h RMS per "
+            "coordinate): the answer "
             "is off (approximate, or a local optimum), the data are in other units or "
             "another dt, or the model lacks an effect (the discrepancy workflow finds which)")
     elif (diagnostics.get("robust_misfit") or 0.0) > MISFIT_WARN:
@@ -350,14 +390,25 @@ def diagnostic_warnings(diagnostics, best, names):
             f"without a model ({diagnostics['data_noise_h']:.2g} h): the answer is off "
             "(approximate, or a local optimum), the model lacks an effect, or the noise "
             "is far from even across particles")
+    still = (still_cloth_warning(diagnostics["motion_h"], diagnostics["position_noise_h"])
+             if "motion_h" in diagnostics else None)
+    if still is not None:
+        warnings.append(still)
     meaningless = meaningless_noise_warning(diagnostics["noise_h"])
     if meaningless is not None:
         warnings.append(meaningless)
+    elif diagnostics["noise_h"] > NOISE_STRONG_H:
+        warnings.append(
+            f"the positions carry noise of about {diagnostics['noise_h']:.2g} h (estimated "
+            "from the residuals): the one-step cost is strongly biased at this noise, expect "
+            "K off by tens of % and tau off by as much as its own size (REPORT.md, "
+            "parameter errors against position noise)")
     elif diagnostics["noise_h"] > NOISE_WARN_H:
         warnings.append(
             f"the positions carry noise of about {diagnostics['noise_h']:.2g} h (estimated "
             "from the residuals): the one-step cost is biased under noise, expect errors "
-            "of several % or more in K and tau (REPORT.md, identification under noise)")
+            "of several % or more in K and tau (REPORT.md, parameter errors against "
+            "position noise)")
     return warnings
 
 

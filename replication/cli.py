@@ -813,6 +813,9 @@ def _hydra_message(error, overrides=()):
     if text.startswith("Ambiguous value for argument '"):
         line = text.split("\n", 1)[0].split("'", 1)[1].rsplit("'", 1)[0]
         key, _, value = line.partition("=")
+        if (Path(CONFIG_DIR) / key.lstrip("+~")).is_dir():
+            return (f"{line}: {key} takes one option per run; for a sweep over them: "
+                    f"replicate -m {line}")
         return (f"{line}: a comma makes the value a list or, with -m, a sweep; for one "
                 f"value with a comma, quote it for Hydra inside the shell's quotes: "
                 f"\"{key}='{value}'\" (a list: {key}=[A,B]; a sweep: replicate -m {line})")
@@ -929,7 +932,7 @@ def _check_sweep_settings(hydra_config, launcher, longest):
     n_jobs = OmegaConf.select(hydra_config, "launcher.n_jobs", default=None)
     check(not (target.endswith("JoblibLauncher") and n_jobs == 0),
           "hydra.launcher.n_jobs=0: expected a number of processes >= 1 (or -1: one per CPU)")
-    if any(line.split("=", 1)[0] == "hydra.sweep.subdir" for line in launcher):
+    if any(line.split("=", 1)[0].lstrip("+") == "hydra.sweep.subdir" for line in launcher):
         return
     dirname = hydra_config.job.config.override_dirname
     name = folder_name(get_overrides_dirname(OverridesParser.create().parse_overrides(longest),
@@ -1032,29 +1035,39 @@ def compose_first_job(args):
 
 def _check_shared_folders(compose, hydra_config, sweep_dir, swept, jobs, launcher):
     """Refuse a sweep over a key that job folder names leave out (``experiment``,
-    ``progress``, the limits: ``hydra.job.config.override_dirname.exclude_keys``) when its
-    jobs would share one sweep folder: they would also share job folders, and only the
-    last result would stay. ``experiment=a,b`` is safe in the default ``multirun/${name}``
-    (a folder per experiment), not in one ``hydra.sweep.dir``."""
-    if any(line.split("=", 1)[0] == "hydra.sweep.subdir" for line in launcher):
+    ``progress``, the limits: ``hydra.job.config.override_dirname.exclude_keys``) when two
+    of its jobs would write one folder: the same sweep folder (and so the same job
+    folders), or, where ``out`` is set per job (``out=DIR/${seed}``), the same ``out``;
+    only the last result would stay. ``experiment=a,b`` is safe in the default
+    ``multirun/${name}`` (a folder per experiment), not in one ``hydra.sweep.dir``."""
+    if any(line.split("=", 1)[0].lstrip("+") == "hydra.sweep.subdir" for line in launcher):
         return
-    if any(line.split("=", 1)[0].lstrip("+~") == "out" for line in jobs[0]):
-        return   # each job writes its own out (a fixed one is refused on its own)
+    per_job_out = any(line.split("=", 1)[0].lstrip("+~") == "out" for line in jobs[0])
     excluded = set(hydra_config.job.config.override_dirname.exclude_keys)
+
+    def folder(job):
+        composed = compose(config_name="config", overrides=job + launcher,
+                           return_hydra_config=per_job_out is False)
+        return str(composed.out if per_job_out else composed.hydra.sweep.dir)
+    first = None
     for (index, line), job in zip(swept, jobs[1:]):
         key = line.split("=", 1)[0].lstrip("+~")
-        if key not in excluded:
+        if key not in excluded or key == "out":
             continue
-        other = str(compose(config_name="config", overrides=job + launcher,
-                            return_hydra_config=True).hydra.sweep.dir)
-        if other == sweep_dir:
-            raise InputError(
-                f"{key} swept into one folder ({sweep_dir}): job folders are named by the "
-                f"other overrides, {key} left out, so {jobs[0][index]} and {line} would "
-                "write the same job folders and only the last result would stay; sweep "
-                f"into a folder per value (the default multirun/${{name}}, or "
-                f"hydra.sweep.dir=DIR/${{{key}}}), or name job folders by number: "
-                "hydra.sweep.subdir='${hydra.job.num}'")
+        first = folder(jobs[0]) if first is None else first
+        if folder(job) != first:
+            continue
+        fix = "${name}" if key == "experiment" else f"${{{key}}}"
+        where = (f"out={first} for both" if per_job_out else
+                 f"one folder ({sweep_dir}): job folders are named by the other overrides, "
+                 f"{key} left out, so both would write the same job folders")
+        raise InputError(
+            f"{key} swept into {where}: {jobs[0][index]} and {line} would overwrite each "
+            "other and only the last result would stay; "
+            + (f"make out depend on it (out=DIR/{fix}/...)" if per_job_out else
+               f"sweep into a folder per value (the default multirun/${{name}}, or "
+               f"hydra.sweep.dir=DIR/{fix}), or name job folders by number: "
+               "hydra.sweep.subdir='${hydra.job.num}'"))
 
 
 def _check_shared_keys(keys, root):

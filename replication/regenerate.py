@@ -418,7 +418,8 @@ def _main(argv=None):
     parser.error = one_line_error
     args = parser.parse_args(argv)
     if not args.results.strip():
-        print("error: --results='': expected a folder (default results/)", file=sys.stderr)
+        print(f"error: --results={args.results!r}: expected a folder (default results/)",
+              file=sys.stderr)
         return 2
     if args.jobs < 1:
         print(f"error: --jobs={args.jobs}: expected at least 1", file=sys.stderr)

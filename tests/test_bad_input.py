@@ -297,6 +297,9 @@ CONFIG_CASES = [
      "method.snake.iterations=-1: expected an integer >= 1"),
     ("segment_multi", ["method.accumulation.cell=-2.0"], "expected a finite number >= 0"),
     ("nope", [], "experiment=nope: unknown experiment"),
+    # figure_dir=null drew the default data's figures into the committed figures/
+    ("motion_single", ["figure_dir=null"], "figure_dir=null: expected a folder"),
+    ("segment_multi", ["figure_dir=null"], "figure_dir=null: expected a folder"),
     ("motion_single", ["data.path=/x/a,b"], "data.path=/x/a,b: a comma makes the value a "
      "list or, with -m, a sweep; for one value with a comma, quote it for Hydra inside the "
      "shell's quotes: \"data.path='/x/a,b'\""),

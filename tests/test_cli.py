@@ -256,8 +256,20 @@ def test_a_sweep_over_experiments_into_one_folder_is_refused(tmp_path):
     # the default sweep folder is one per experiment; job folders by number are distinct
     compose_first_job(["experiment=cloth_identify,cloth_ci", "seed=0,1"])
     compose_first_job(["experiment=cloth_identify,cloth_ci", "seed=0,1",
-                       f"hydra.sweep.dir={tmp_path}", "hydra.sweep.subdir=${hydra.job.num}"])
+                       f"hydra.sweep.dir={tmp_path}", "++hydra.sweep.subdir=${hydra.job.num}"])
+    # an out per job that does not depend on the experiment: both write one out
+    with pytest.raises(InputError, match=re.escape(
+            f"experiment swept into out={tmp_path}/0 for both")):
+        compose_first_job(["experiment=fig08_mesh,cloth_reference", f"out={tmp_path}/${{seed}}"])
+    compose_first_job(["experiment=fig08_mesh,cloth_reference", f"out={tmp_path}/${{name}}"])
     assert os.listdir(tmp_path) == []
+
+
+def test_two_experiments_without_a_sweep_are_one_line():
+    done = run_cli("experiment=fig08_mesh,cloth_ci")
+    assert done.returncode == 2 and done.stderr == (
+        "error: experiment=fig08_mesh,cloth_ci: experiment takes one option per run; for a "
+        "sweep over them: replicate -m experiment=fig08_mesh,cloth_ci\n")
 
 
 def test_glob_of_files_gets_a_hint():

@@ -459,7 +459,9 @@ def _warnings(data, base_fit, located, named_effects, gap_before, gap_after, lim
     held-out gap little, an anisotropic stiffness without anisotropy, a body force that
     looks like a unit or time-step mistake."""
     warnings = []
-    still = still_cloth_warning(*motion_and_noise(data))
+    motion_h, data_noise_h = motion_and_noise(data)
+    still = still_cloth_warning(motion_h, min(data_noise_h, located.get("noise_sigma_h",
+                                                                         data_noise_h)))
     if still is not None:
         warnings.append(still)
     meaningless = meaningless_noise_warning(located.get("noise_sigma_h", 0.0))

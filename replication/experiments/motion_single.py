@@ -227,6 +227,8 @@ def single_rotation(config, out):
     settings = single.settings_from(config.get("method"))
     _check_settings(settings)
     given = config.get("data", {}).get("path")
+    figure_dir = figure_folder(config, out, given is None) if config.get("figures", True) \
+        else None
     sequence = _load(given or config["default_data"])
     progress(f"{sequence.source}: {sequence.frames.shape[0]} frames of "
              f"{sequence.frames.shape[1]} x {sequence.frames.shape[2]}")
@@ -268,8 +270,7 @@ def single_rotation(config, out):
         result["truth"] = {k: truth[k] for k in ("xi", "eta", "omega")}
         result["errors"] = {"paper": single.errors(paper, truth),
                             "refined": single.errors(refined, truth)}
-    if config.get("figures", True):
-        figure_dir = figure_folder(config, out, given is None)
+    if figure_dir is not None:
         shown = (sequence, found) if "pyramid" not in found else _top_level(sequence, found)
         result["figures"] = _draw_figures(*shown, settings, figure_dir)
     return result

@@ -200,6 +200,7 @@ def segment_sequence(config, out):
 
     settings = segmentation.settings_from(config.get("method"))
     sequence, default = _load(config)
+    figure_dir = figure_folder(config, out, default) if config.get("figures", True) else None
     progress(f"{sequence.source}: {sequence.frames.shape[0]} frames of "
              f"{sequence.frames.shape[1]} x {sequence.frames.shape[2]}")
     # scored: truth objects (a truth without 'objects' scores nothing) and labels
@@ -252,8 +253,7 @@ def segment_sequence(config, out):
     if scored:
         result["truth"] = sequence.truth["objects"]
         result["score"] = score_objects(found["objects"], sequence.labels[0], sequence.truth)
-    if config.get("figures", True):
-        figure_dir = figure_folder(config, out, default)
+    if figure_dir is not None:
         shown = (sequence, found)
         if "pyramid" in found:
             shown = (pyramid.sequence_on_level(sequence, found["pyramid"]["frames"],

@@ -350,7 +350,9 @@ def still_cloth_warning(motion_h, noise_h):
     (:func:`motion_and_noise`), or None: a cloth at rest (or noise only) moves less than
     :data:`STILL_FACTOR` noise sds, and no parameter is determined by such frames whatever
     a fit returns. One check for every workflow that fits the cloth model (frames
-    identical to the last bit are refused when the file is read)."""
+    identical to the last bit are refused when the file is read). ``noise_h``: the smaller
+    of the model-free estimate and the fit's residual one (motion that changes within a
+    few frames reads as noise to the first, not to a model that explains it)."""
     if motion_h > STILL_FACTOR * noise_h:
         return None
     return (f"the free particles move {motion_h:.2g} h RMS about their mean positions over "
@@ -390,7 +392,8 @@ def diagnostic_warnings(diagnostics, best, names):
             f"without a model ({diagnostics['data_noise_h']:.2g} h): the answer is off "
             "(approximate, or a local optimum), the model lacks an effect, or the noise "
             "is far from even across particles")
-    still = (still_cloth_warning(diagnostics["motion_h"], diagnostics["position_noise_h"])
+    still = (still_cloth_warning(diagnostics["motion_h"],
+                                 min(diagnostics["position_noise_h"], diagnostics["noise_h"]))
              if "motion_h" in diagnostics else None)
     if still is not None:
         warnings.append(still)

@@ -143,11 +143,13 @@ def figure_folder(config, out, default):
     """Where a one-sequence experiment draws its figures: ``figure_dir`` for its own
     default data, else ``out/figures``, so that a user's sequence never overwrites the
     committed figures (``replicate`` notes a ``figure_dir`` that got no figure)."""
+    if not default:
+        return Path(out) / "figures"
     figure_dir = config.get("figure_dir")
     check(isinstance(figure_dir, str) and figure_dir.strip() != "",
           f"figure_dir={'null' if figure_dir is None else repr(figure_dir)}: expected a "
           "folder (figures/ is the default data's)")
-    return Path(figure_dir) if default else Path(out) / "figures"
+    return Path(figure_dir)
 
 
 def check_motion(sequence):

@@ -19,7 +19,6 @@ from replication.motion.frame_checks import frame_checks
 from replication.progress import progress
 
 
-
 def write_mask(path, mask):
     """One object's mask as an 8-bit PNG (255 inside, 0 outside).
 

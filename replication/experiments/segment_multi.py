@@ -103,6 +103,12 @@ def translation_warnings(frames, settings, pixels=None):
 BLOCK = 16              # side (px) of the blocks the moving-pixel check counts in
 BLOCK_MOVING = 0.5      # a block moves when this share of its selected pixels moves
 UNCOVERED_SHARE = 0.2   # moving blocks outside every object above this share are warned
+# ... and so is a patch of at least this many touching (8-connected) moving blocks outside
+# every object, whatever their share: a small object missed beside large ones found.
+# Measured on the 8 committed multi sequences (all objects found): 0 such blocks without
+# noise, patches of at most 3 blocks with noise 2 to 4 /255 (at 5 and 6 /255 noise moves
+# more than 20% of the blocks); one found object left out: patches of 3 to 21 blocks
+UNCOVERED_PATCH = 4
 
 
 def motion_outside_warnings(frames, found, settings, pixels=None):
@@ -113,7 +119,9 @@ def motion_outside_warnings(frames, found, settings, pixels=None):
     Pixels move when their normal flow ``|It| / |grad I|`` is at least the snake's
     ``tolerance``; noise makes single pixels move, so the check counts blocks of
     :data:`BLOCK` px in which at least :data:`BLOCK_MOVING` of the selected pixels move,
-    and a block is covered when an object's mask (grown by one block) reaches its centre.
+    and a block is covered when an object's mask (grown by one block) reaches its centre;
+    it warns when more than :data:`UNCOVERED_SHARE` of the moving blocks are not covered,
+    or :data:`UNCOVERED_PATCH` of them touch (a small object missed beside large ones).
     ``pixels``: the full-resolution derivatives when the caller has them."""
     from scipy import ndimage
 
@@ -127,7 +135,7 @@ def motion_outside_warnings(frames, found, settings, pixels=None):
     shape = (-(-height // BLOCK), -(-width // BLOCK))
     if len(pixels) == 0:
         return []
-    moving = np.abs(pixels.gt) / pixels.gradient_norm >= settings["snake"]["tolerance"]
+    moving = pixels.normal_flow >= settings["snake"]["tolerance"]
     cell = (np.asarray(pixels.y, int) // BLOCK) * shape[1] + np.asarray(pixels.x, int) // BLOCK
     selected = np.bincount(cell, minlength=shape[0] * shape[1])
     moved = np.bincount(cell, weights=moving, minlength=shape[0] * shape[1])
@@ -145,15 +153,18 @@ def motion_outside_warnings(frames, found, settings, pixels=None):
     inside = covered[np.ix_(centres_y, centres_x)].ravel()
     outside = blocks & ~inside
     share = np.count_nonzero(outside) / np.count_nonzero(blocks)
+    patches, _ = ndimage.label(outside.reshape(shape), structure=np.ones((3, 3)))
+    patch = int(np.bincount(patches.ravel())[1:].max(initial=0))
     if not found["objects"]:
         return [f"no rotating object found, yet {np.count_nonzero(blocks)} block(s) of "
                 f"{BLOCK} x {BLOCK} px move: an object may turn faster or slower than the "
                 "omega bounds (method.ea.omega_min, method.ea.omega_max) or "
                 "move otherwise (a translation, a deformation), or noise moves them"]
-    if share <= UNCOVERED_SHARE:
+    if share <= UNCOVERED_SHARE and patch < UNCOVERED_PATCH:
         return []
     return [f"{100 * share:.0f}% of the moving blocks of {BLOCK} x {BLOCK} px "
-            f"({np.count_nonzero(outside)} of {np.count_nonzero(blocks)}) lie outside every "
+            f"({np.count_nonzero(outside)} of {np.count_nonzero(blocks)}; {patch} of them "
+            "touching) lie outside every "
             "object found: another object may turn faster or slower than the omega bounds "
             "(method.ea.omega_min, method.ea.omega_max) or move otherwise (a translation, a "
             "deformation), and is missed (or noise moves them)"]

@@ -43,6 +43,12 @@ class PixelDerivatives:
         """``|grad I|`` per pixel, shape ``(n,)``."""
         return np.hypot(self.gx, self.gy)
 
+    @property
+    def normal_flow(self):
+        """``|It| / |grad I|`` per pixel, shape ``(n,)``: the speed (pixels/frame) of the
+        motion along the gradient; a pixel moves when it is above the noise's."""
+        return np.abs(self.gt) / self.gradient_norm
+
     def __len__(self):
         return self.x.size
 

@@ -98,24 +98,30 @@ def read_image(path):
     ----------
     path : str or Path
     """
+    return _read_frame(path)[0]
+
+
+def _read_frame(path):
+    """:func:`read_image`'s frame and what the file holds: its format as the reader found
+    it (``"PNG"``, ``"JPEG"``, ``"TIFF"``, whatever the suffix says) and its dtype."""
     path = Path(path)
     try:
         if path.suffix.lower() in TIFF_SUFFIXES:
             import tifffile
 
-            image = tifffile.imread(path)
+            image, kind = tifffile.imread(path), "TIFF"
         else:
             from PIL import Image
 
             with Image.open(path) as handle:
                 _check_size(path, (handle.height, handle.width))
-                image = _pil_array(handle)
+                image, kind = _pil_array(handle), handle.format or "image"
     except InputError:
         raise  # a readable frame refused for its size, named as such
     except (OSError, ValueError, SyntaxError) as error:
         raise InputError(f"{path}: cannot be read as an image ({_reason(error)}); expected a "
                          "PNG, TIFF or JPEG frame") from None
-    return _luminance(path, _to_float(path, "pixels", image))
+    return _luminance(path, _to_float(path, "pixels", image)), (kind, str(image.dtype))
 
 
 def _read_tiff_stack(path):
@@ -312,15 +318,53 @@ def _parse_truth(path, text):
     return truth
 
 
+def _note_frame_kinds(folder, files, kinds):
+    """Notes on what the frame files hold: JPEG data (lossy, whatever the suffix says), and
+    frames of different dtypes (8- and 16-bit frames are scaled to 0..1, others read as
+    stored, so a float TIFF among 8-bit PNGs can be on another scale)."""
+    jpeg = [p for p, (kind, _) in zip(files, kinds) if kind == "JPEG"]
+    if jpeg:
+        hidden = next((p for p in jpeg if p.suffix.lower() not in JPEG_SUFFIXES), None)
+        named = f" ({hidden.name} is a JPEG file, whatever its suffix)" if hidden else ""
+        _note(folder, f"JPEG frames are lossy{named}: compression artefacts add noise to the "
+                      "image derivatives (lossless frames, PNG or TIFF, are better)")
+    first = {}
+    for p, (kind, dtype) in zip(files, kinds):
+        first.setdefault(dtype, (p, kind))
+    if len(first) > 1:
+        listed = "; ".join(f"{p.name}: {dtype} {kind}" for dtype, (p, kind) in first.items())
+        _note(folder, f"frames of different dtypes ({listed}): 8- and 16-bit frames are "
+              "scaled to 0..1, other dtypes read as stored, so their intensities may be on "
+              "different scales (a jump the method reads as motion); save every frame alike")
+
+
+def _note_uneven_numbers(folder, files):
+    """A note when the frames' numbers (the last digit run of each name) are not evenly
+    spaced: the methods take frames as equally spaced in time."""
+    numbers = [re.findall(r"\d+", p.stem) for p in files]
+    if len(files) < 3 or not all(numbers):
+        return
+    values = [int(found[-1]) for found in numbers]
+    if values != sorted(values):
+        return  # read in name order, not number order: :func:`_frame_files` notes that
+    steps = np.diff(values)
+    if np.all(steps == steps[0]):
+        return
+    at = int(np.argmax(steps != steps[0])) + 1
+    _note(folder, f"frame numbers are not evenly spaced ({files[at - 1].name} -> "
+          f"{files[at].name} steps by {steps[at - 1]}, the others before it by {steps[0]}): "
+          "the methods take frames as equally spaced in time, so a missing frame doubles "
+          "the motion between its neighbours")
+
+
 def _read_folder(folder):
     files, label_files = _frame_files(folder)
     if not files:
         _fail(folder, "frames", "no PNG, TIFF or JPEG file", "frames named in time order "
               "(e.g. frame_000.png, frame_001.png)")
-    images = [read_image(p) for p in files]
-    if any(p.suffix.lower() in JPEG_SUFFIXES for p in files):
-        _note(folder, "JPEG frames are lossy: compression artefacts add noise to the image "
-                      "derivatives (lossless frames, PNG or TIFF, are better)")
+    images, kinds = zip(*(_read_frame(p) for p in files))
+    _note_frame_kinds(folder, files, kinds)
+    _note_uneven_numbers(folder, files)
     for p, image in zip(files, images):
         if image.shape != images[0].shape:
             _fail(p, "shape", f"{image.shape[0]} x {image.shape[1]} pixels",

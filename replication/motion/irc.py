@@ -303,7 +303,7 @@ def translation_fit(pixels, tolerance):
     u, v, moving, explained : float
     """
     norm = pixels.gradient_norm
-    moving = np.abs(pixels.gt) / norm >= tolerance
+    moving = pixels.normal_flow >= tolerance
     if not np.any(moving):
         return 0.0, 0.0, 0.0, 0.0
     a = np.stack([pixels.gx[moving], pixels.gy[moving]], axis=1)

@@ -86,6 +86,50 @@ def test_jpeg_frames_are_read_with_a_note(tmp_path, capsys):
     assert "JPEG frames are lossy" in capsys.readouterr().err
 
 
+def test_notes_on_jpeg_data_behind_a_png_suffix_and_mixed_dtypes(tmp_path, capsys):
+    """An outside user's JPEG files named .png were read without the lossy note, and float
+    TIFF frames (0..255) among 8-bit PNGs only got a brightness warning on the jump."""
+    import tifffile
+
+    frames = (grey(4) * 255).astype(np.uint8)
+    jpeg = tmp_path / "jpeg"
+    jpeg.mkdir()
+    for t, frame in enumerate(frames):
+        Image.fromarray(frame).save(jpeg / f"frame_{t}.png", format="JPEG", quality=95)
+    read_sequence(jpeg)
+    assert "lossy (frame_0.png is a JPEG file, whatever its suffix)" in capsys.readouterr().err
+    mixed = tmp_path / "mixed"
+    mixed.mkdir()
+    tifffile.imwrite(mixed / "frame_0.tif", frames[0].astype(np.float32))
+    for t, frame in enumerate(frames[1:], 1):
+        Image.fromarray(frame).save(mixed / f"frame_{t}.png")
+    read_sequence(mixed)
+    err = capsys.readouterr().err
+    assert "frames of different dtypes (frame_0.tif: float32 TIFF; frame_1.png: uint8 PNG)" \
+        in err and "lossy" not in err
+    alike = tmp_path / "alike"    # the same dtype in another format: no note
+    alike.mkdir()
+    tifffile.imwrite(alike / "frame_0.tif", frames[0])
+    for t, frame in enumerate(frames[1:], 1):
+        Image.fromarray(frame).save(alike / f"frame_{t}.png")
+    read_sequence(alike)
+    assert "note:" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("numbers, noted", [
+    ((0, 1, 2, 4), "(frame_2.png -> frame_4.png steps by 2, the others before it by 1)"),
+    ((0, 2, 4, 6), None), ((3, 4, 5, 6), None),
+    ((10, 11, 13), "(frame_11.png -> frame_13.png steps by 2, the others before it by 1)"),
+])
+def test_note_on_unevenly_numbered_frames(tmp_path, capsys, numbers, noted):
+    """Frames 0, 1, 2, 4 (a dropped frame) were read as evenly spaced, silently."""
+    for t, frame in zip(numbers, (grey(len(numbers)) * 255).astype(np.uint8)):
+        Image.fromarray(frame).save(tmp_path / f"frame_{t}.png")
+    read_sequence(tmp_path)
+    err = capsys.readouterr().err
+    assert (noted in err and "not evenly spaced" in err) if noted else "note:" not in err
+
+
 def test_animated_gif(tmp_path, capsys):
     frames = (grey(3) * 255).astype(np.uint8)
     images = [Image.fromarray(frame).convert("P") for frame in frames]

@@ -220,3 +220,13 @@ def test_data_makers_refuse_frames_their_readers_refuse(name, tmp_path):
     with pytest.raises(InputError, match=r"\.shape: \[4, 4\]; expected \[H, W\] of at least 8"):
         run_experiment(config, tmp_path / "out")
     assert not (tmp_path / "data").exists()
+
+
+def test_speed_verdicts_call_close_medians_as_fast():
+    """0.337 s against 0.336 s read 'slower', and the verdict flipped between runs of the
+    same code (wall times on a shared machine)."""
+    from replication.report.motion import _speed_word
+
+    assert _speed_word(0.337, 0.336) == "as fast (within 15 %)"
+    assert _speed_word(0.2, 0.5) == "faster" and _speed_word(0.5, 0.2) == "slower"
+    assert _speed_word(0.1, 0.12) == "faster" and _speed_word(0.1, 0.115).startswith("as fast")

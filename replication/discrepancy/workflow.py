@@ -46,7 +46,7 @@ DEFAULTS = {
     "alpha": 1e-3, "n_subsamples": 20, "stability_min": 0.5, "q_threshold": 3.0,
     "explained_min": 0.5, "max_candidates": 2, "max_effects": 3,
     "unexplained_fraction": 0.01, "segments": 4, "constancy_max": 0.4,
-    "power_min": 0.2, "reselect": 0,
+    "power_min": 0.2, "reselect": 1,
 }
 MIN_FRAMES = 60
 # the constancy check applies to force terms with at most this many coefficients
@@ -62,6 +62,17 @@ MIN_GAIN_H = 1e-6
 # data's largest coordinate per step (RMS over the particle-frames the fit uses): below it,
 # what the effect "explains" is round-off of the positions, in whatever units they are
 ROUNDOFF_STEPS = 1e3
+# A weak name (Q under the threshold before and after the trial): with Q between
+# WEAK_Q_MIN and the threshold before, a trial that removes explained_min of its excess
+# is confirmed even when the BIC disagrees: a mass profile's 32 coefficients
+# cost more BIC than the fit gains though Q fell to the noise (2.3 -> 1.1) and the
+# held-out rollout improved 23-50% (fresh outside data, seeds 31-33, not the report's)
+WEAK_Q_MIN = 2.0
+# A strong name that leaves Q at most this is confirmed although the held-out rollout
+# worsens: on noise-free data whose held-out frames the constraint dominates (the base
+# model's held-out residuals thousands of times its training ones) a right profile
+# (Q 124 -> 1e-4) worsened the rollout by 10%
+VETO_WAIVER_Q = 2.0
 
 
 def settings_from(config):
@@ -171,10 +182,13 @@ def _forward(context, state, banned, tried, rounds, attempt):
     Every comparison of a trial with the current model measures both on one noise scale,
     the smaller of their two estimates (the estimate from a worse model's residuals is
     off by its structure). A trial is confirmed when it improves the held-out rollout and
-    either removes ``explained_min`` of a structure above ``q_threshold`` (strong), leaves
-    ``Q`` under the threshold with the BIC agreeing (weak), or, for a force term that the
-    constancy check can test, removes ``power_min`` of the excess one-step residual power
-    over the noise (6 sigma^2) while ``Q`` is above the threshold (power: ``Q`` weighs
+    either removes ``explained_min`` of a structure above ``q_threshold`` (strong; the
+    held-out test is waived when it leaves ``Q`` at most :data:`VETO_WAIVER_Q`), keeps a
+    ``Q`` that was under the threshold under it with the BIC agreeing or, from above
+    :data:`WEAK_Q_MIN`, removing ``explained_min`` of its excess (weak), or, for a force
+    term that the constancy check can test, removes ``power_min`` of the excess one-step
+    residual power over the noise (6 sigma^2) while ``Q`` is above the threshold (power:
+    ``Q`` weighs
     slow, coherent structure, so beside a larger effect that the library does not describe
     a library effect whose error changes from step to step, a stiffness or a damping, can
     lower the residual power much and ``Q`` little).
@@ -201,7 +215,11 @@ def _forward(context, state, banned, tried, rounds, attempt):
         for name in eligible:
             scores[name]["Q_quick"] = quick[name]
         ranked = sorted(eligible, key=lambda name: quick[name])[:settings["max_candidates"]]
-        strongest = min(eligible, key=lambda name: scores[name]["log10_p"])
+        # the strongest by its Wald test among the small terms: the profiles' cluster-robust
+        # Wald (32 coefficients, few clusters) is inflated (above its threshold on about
+        # 20 of 54 effect-free datasets), so it always took this slot from a small force
+        small = [name for name in eligible if scores[name]["df"] <= MAX_CONSTANCY_COEFFICIENTS]
+        strongest = min(small or eligible, key=lambda name: scores[name]["log10_p"])
         ranked += [strongest] if strongest not in ranked else []
         best = None
         for name in ranked:
@@ -232,8 +250,12 @@ def _forward(context, state, banned, tried, rounds, attempt):
             testable = (trial["fit"].how == "regression"
                         and len(trial["fit"].term(name)) <= MAX_CONSTANCY_COEFFICIENTS)
             above = q_before > threshold
+            # weak: Q was under the threshold already (a trial that brings a Q above it
+            # under it without removing explained_min of its excess is not confirmed)
+            weak_evidence = evidence["delta_bic"] < 0 or (
+                q_before > WEAK_Q_MIN and explained >= settings["explained_min"])
             how = ("strong" if above and explained >= settings["explained_min"] else
-                   "weak" if q_after <= threshold and evidence["delta_bic"] < 0 else
+                   "weak" if not above and q_after <= threshold and weak_evidence else
                    "power" if (above and testable and explained_power is not None
                               and explained_power >= settings["power_min"])
                    else None)
@@ -243,8 +265,10 @@ def _forward(context, state, banned, tried, rounds, attempt):
             evidence["displacement_h"] = _displacement_h(data, trial["fit"], name, frames,
                                                          mask)
             evidence["roundoff_h"] = context["roundoff_h"]
-            confirmed = bool(how is not None and trial["gap"]["rollout"]
-                             < state["gap"]["rollout"] - MIN_GAIN_H
+            evidence["rollout_veto_waived"] = bool(how == "strong" and q_after <= VETO_WAIVER_Q)
+            confirmed = bool(how is not None
+                             and (evidence["rollout_veto_waived"] or trial["gap"]["rollout"]
+                                  < state["gap"]["rollout"] - MIN_GAIN_H)
                              and evidence["displacement_h"]
                              > ROUNDOFF_STEPS * context["roundoff_h"])
             tried.append({"name": name, "step": len(selected), "pass": attempt,
@@ -619,6 +643,7 @@ def analyse(trajectory, config=None, *, rng=None):
                "settings": settings, "model": model, "rng": rng, "start": start,
                "roundoff_h": roundoff_h(data)}
     tried, rounds, dropped, banned = [], [], [], set()
+    kept = []   # the most names a pass kept after its constancy check
     for attempt in range(settings["reselect"] + 1):
         named, current = _forward(context, state, banned, tried, rounds, attempt)
         if not named or current["fit"].how != "regression":
@@ -641,10 +666,18 @@ def analyse(trajectory, config=None, *, rng=None):
             break
         dropped += newly
         banned |= {d["name"] for d in newly}
+        survivors = [(n, e) for n, e in named if n not in banned]
+        kept = survivors if len(survivors) > len(kept) else kept
         if attempt == settings["reselect"]:
             # no selection pass left: keep what passed, refitted without the dropped terms
             named = [(n, e) for n, e in named if n not in banned]
             current = _state(context, [n for n, _ in named], base_fit)
+    if len(kept) > len(named):
+        # a pass without the dropped absorber named fewer effects than an earlier pass kept
+        # (an absorber of an effect outside the library can mask a library effect in the
+        # first pass and, banned, leave the next pass with less to go on): keep those
+        named = kept
+        current = _state(context, [n for n, _ in named], base_fit)
     selected = [name for name, _ in named]
     r_final = current["r"]
     current, gap_current = current["fit"], current["gap"]

@@ -318,11 +318,21 @@ def _parse_truth(path, text):
     return truth
 
 
+# what Pillow calls JPEG data (MPO: a phone or camera JPEG holding several pictures)
+LOSSY_FORMATS = ("JPEG", "MPO")
+
+
+def _scale(dtype):
+    """How :func:`_to_float` scales a dtype: 8- and 16-bit to 0..1, others as stored."""
+    return "scaled" if dtype in ("uint8", "uint16") else "as stored"
+
+
 def _note_frame_kinds(folder, files, kinds):
     """Notes on what the frame files hold: JPEG data (lossy, whatever the suffix says), and
-    frames of different dtypes (8- and 16-bit frames are scaled to 0..1, others read as
-    stored, so a float TIFF among 8-bit PNGs can be on another scale)."""
-    jpeg = [p for p, (kind, _) in zip(files, kinds) if kind == "JPEG"]
+    frames scaled differently (8- and 16-bit frames to 0..1, others read as stored, so a
+    float TIFF among 8-bit PNGs can be on another scale)."""
+    jpeg = [p for p, (kind, _) in zip(files, kinds)
+            if kind in LOSSY_FORMATS or p.suffix.lower() in JPEG_SUFFIXES]
     if jpeg:
         hidden = next((p for p in jpeg if p.suffix.lower() not in JPEG_SUFFIXES), None)
         named = f" ({hidden.name} is a JPEG file, whatever its suffix)" if hidden else ""
@@ -330,29 +340,36 @@ def _note_frame_kinds(folder, files, kinds):
                       "image derivatives (lossless frames, PNG or TIFF, are better)")
     first = {}
     for p, (kind, dtype) in zip(files, kinds):
-        first.setdefault(dtype, (p, kind))
+        first.setdefault(_scale(dtype), (p, kind, dtype))
     if len(first) > 1:
-        listed = "; ".join(f"{p.name}: {dtype} {kind}" for dtype, (p, kind) in first.items())
+        listed = "; ".join(f"{p.name}: {dtype} {kind}" for p, kind, dtype in first.values())
         _note(folder, f"frames of different dtypes ({listed}): 8- and 16-bit frames are "
               "scaled to 0..1, other dtypes read as stored, so their intensities may be on "
               "different scales (a jump the method reads as motion); save every frame alike")
 
 
 def _note_uneven_numbers(folder, files):
-    """A note when the frames' numbers (the last digit run of each name) are not evenly
-    spaced: the methods take frames as equally spaced in time."""
+    """A note when the frames' numbers (the last digit run of each name) repeat or are not
+    evenly spaced: the methods take frames as equally spaced in time."""
     numbers = [re.findall(r"\d+", p.stem) for p in files]
     if len(files) < 3 or not all(numbers):
         return
     values = [int(found[-1]) for found in numbers]
     if values != sorted(values):
-        return  # read in name order, not number order: :func:`_frame_files` notes that
+        return  # not in number order: the time order is the names' (docs/data-formats.md)
     steps = np.diff(values)
-    if np.all(steps == steps[0]):
+    if np.any(steps == 0):
+        at = int(np.argmax(steps == 0))
+        _note(folder, f"{files[at].name} and {files[at + 1].name} share the number "
+              f"{values[at]}: both are read, in name order, as frames one step apart")
         return
-    at = int(np.argmax(steps != steps[0])) + 1
-    _note(folder, f"frame numbers are not evenly spaced ({files[at - 1].name} -> "
-          f"{files[at].name} steps by {steps[at - 1]}, the others before it by {steps[0]}): "
+    usual = int(np.bincount(steps).argmax())   # the most common step (the smallest of ties)
+    if np.all(steps == usual):
+        return
+    odd = [i for i, step in enumerate(steps) if step != usual]
+    pairs = ", ".join(f"{files[i].name} -> {files[i + 1].name} by {steps[i]}" for i in odd[:3])
+    more = f" and {len(odd) - 3} more" if len(odd) > 3 else ""
+    _note(folder, f"frame numbers are not evenly spaced (most step by {usual}; {pairs}{more}): "
           "the methods take frames as equally spaced in time, so a missing frame doubles "
           "the motion between its neighbours")
 

@@ -192,10 +192,11 @@ def _versus_baselines(summary, noise=2.0):
         lines.append(f"- {base['method']}: {'as accurate or more' if accurate else 'less accurate'}"
                      f", {speed} ({fmt(base['seconds_median'], 3)} s)")
     best = _best_baseline({"summary": summary}, noise)
-    faster_than_best = fast["seconds_median"] < best["seconds_median"]
+    versus_best = _speed_word(fast["seconds_median"], best["seconds_median"])
+    faster_than_best = versus_best == "faster"
     suite = (f"{'as accurate as' if accurate_all else 'not as accurate as'} every baseline; "
-             f"{'faster than' if faster_than_best else 'slower than'} the most accurate "
-             f"({best['method']})")
+             f"{versus_best} {'as' if versus_best.startswith('as fast') else 'than'} the "
+             f"most accurate ({best['method']})")
     if slower_than:
         suite += (f"; slower (by more than {fmt(100 * SPEED_TIE)} %) than "
                   + ", ".join(slower_than))

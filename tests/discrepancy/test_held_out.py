@@ -129,3 +129,34 @@ def test_a_misfit_without_structure_is_reported_unexplained(tmp_path):
     assert result["unexplained"]["excess_power"] > 1e3
     assert any("reported as unexplained (unexplained.excess_power)" in w
                for w in result["warnings"])
+
+
+def test_an_earlier_pass_is_restored_only_when_nothing_in_it_was_dropped_since(monkeypatch):
+    """Pass 0 named [A, B, E] and dropped A; pass 1, A banned, named [C] after dropping B.
+    The earlier [B, E] came back although B had just been dropped; now they come back only
+    when none of them is banned and every force still keeps its coefficients."""
+    from replication.discrepancy import workflow
+
+    class Fit:
+        how = "regression"
+
+        def term(self, name):
+            return [0.0]    # a force of one coefficient: the constancy check applies
+
+    varies = set()
+    monkeypatch.setattr(workflow, "_state", lambda context, names, base: {"fit": Fit(),
+                                                                         "names": names})
+    monkeypatch.setattr(workflow, "_varies", lambda context, fit, name: ({}, name in varies))
+
+    def restore(banned):
+        kept = [("B", {"pass": 0}), ("E", {"pass": 0})]
+        return workflow._restore({}, [("C", {"pass": 1})], "pass 1", kept, banned, None)
+
+    named, current = restore({"A", "B"})
+    assert [n for n, _ in named] == ["C"] and current == "pass 1"
+    named, current = restore({"A"})
+    assert [n for n, _ in named] == ["B", "E"] and current["names"] == ["B", "E"]
+    assert named[0][1] == {"pass": 0, "restored_from_pass": 0, "superseded": ["C"]}
+    varies.add("E")     # refitted without A, E no longer keeps its coefficients
+    named, current = restore({"A"})
+    assert [n for n, _ in named] == ["C"] and current == "pass 1"

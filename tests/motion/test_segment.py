@@ -383,7 +383,7 @@ def test_a_small_missed_object_beside_a_large_found_one_is_warned():
                                 np.where(large, turned(100, 120, 0.02, t), texture))
                        for t in range(3)])
     missed = motion_outside_warnings(frames, {"objects": [{"mask": large}]}, settings)
-    assert len(missed) == 1 and "(10 of 71; 10 of them touching)" in missed[0]
+    assert len(missed) == 1 and "(10 of 71; the largest touching patch: 10)" in missed[0]
     assert motion_outside_warnings(frames, {"objects": [{"mask": large}, {"mask": small}]},
                                    settings) == []
 

@@ -187,15 +187,17 @@ def _forward(context, state, banned, tried, rounds, attempt):
     the smaller of their two estimates (the estimate from a worse model's residuals is
     off by its structure). A trial is confirmed when it improves the held-out rollout and
     either removes ``explained_min`` of a structure above ``q_threshold`` (strong; the
-    held-out test is waived when it leaves ``Q`` at most :data:`VETO_WAIVER_Q`), keeps a
-    ``Q`` that was under the threshold under it with the BIC agreeing or, from above
+    held-out test is waived when it leaves ``Q`` at most :data:`VETO_WAIVER_Q` and the
+    rollout error at most :data:`VETO_WAIVER_ROLLOUT` times what it was), keeps a ``Q``
+    that was under the threshold under it with the BIC agreeing or, from above
     :data:`WEAK_Q_MIN`, removing ``explained_min`` of its excess (weak), or, for a force
     term that the constancy check can test, removes ``power_min`` of the excess one-step
     residual power over the noise (6 sigma^2) while ``Q`` is above the threshold (power:
-    ``Q`` weighs
-    slow, coherent structure, so beside a larger effect that the library does not describe
-    a library effect whose error changes from step to step, a stiffness or a damping, can
-    lower the residual power much and ``Q`` little).
+    ``Q`` weighs slow, coherent structure, so beside a larger effect that the library does
+    not describe a library effect whose error changes from step to step, a stiffness or a
+    damping, can lower the residual power much and ``Q`` little). The extra candidate of
+    each step is the strongest by its Wald test among the forces of at most
+    :data:`MAX_CONSTANCY_COEFFICIENTS` coefficients (all, when none is eligible).
     """
     data, frames, mask = context["data"], context["frames"], context["mask"]
     settings, model = context["settings"], context["model"]

@@ -956,7 +956,10 @@ def compose_first_job(args):
     keys set for all of them against the root config (Hydra applies them to it first), and
     a fixed ``out``, ``figure_dir``, ... (every job would write there).
 
-    Returns the sweep folder (``hydra.sweep.dir`` as composed here).
+    Returns ``(folders, record)``: the sweep folders of the jobs (``hydra.sweep.dir`` as
+    composed here; in a sweep over experiments, one per experiment) and the folder Hydra
+    writes the sweep's ``multirun.yaml`` to (composed without the swept experiment: in
+    ``multirun/${name}``, ``multirun/None``; :func:`_place_sweep_record` moves it).
 
     Parameters
     ----------
@@ -968,6 +971,7 @@ def compose_first_job(args):
 
     try:
         overrides, swept, launcher, plain, fixed, longest = [], [], [], [], [], []
+        unswept = []   # what Hydra's sweeper composes its own config with
         for override in OverridesParser.create().parse_overrides(list(args)):
             if override.key_or_group.startswith("hydra"):
                 launcher.append(override.input_line)
@@ -983,6 +987,7 @@ def compose_first_job(args):
                                if values else override.input_line)
             else:
                 overrides.append(override.input_line)
+                unswept.append(override.input_line)
                 longest.append(override.input_line)
                 if not (override.is_add() or override.is_force_add()
                         or (Path(CONFIG_DIR) / override.key_or_group).is_dir()):
@@ -1011,8 +1016,14 @@ def compose_first_job(args):
             _check_sweep_settings(hydra_config, launcher, longest)
             sweep_dir = str(hydra_config.sweep.dir)
             _check_shared_folders(compose, hydra_config, sweep_dir, swept, jobs, launcher)
+            folders, record = [sweep_dir], sweep_dir
             if any(line.startswith("experiment=") for _, line in swept):
                 _check_shared_keys(plain, compose(config_name="config"))
+                folders = list(dict.fromkeys(
+                    str(compose(config_name="config", overrides=job + launcher,
+                                return_hydra_config=True).hydra.sweep.dir) for job in jobs))
+                record = str(compose(config_name="config", overrides=unswept + launcher,
+                                     return_hydra_config=True).hydra.sweep.dir)
             owns, own = {}, None
             for job in jobs:
                 config = OmegaConf.to_container(compose(config_name="config", overrides=job),
@@ -1030,7 +1041,22 @@ def compose_first_job(args):
         raise
     except (HydraException, ValueError) as error:   # the override parser's refusals
         raise InputError(_hydra_message(error, list(args))) from None
-    return sweep_dir
+    return folders, record
+
+
+def _place_sweep_record(folders, record):
+    """After a sweep over experiments, put the ``multirun.yaml`` Hydra wrote to ``record``
+    (``multirun/None``: the sweep's own config names no experiment) into each experiment's
+    sweep folder that exists, where ``replicate-gather`` reads it (which jobs the sweep
+    made), and remove ``record`` when that leaves it empty."""
+    source = Path(record) / "multirun.yaml"
+    if record in folders or not source.is_file():
+        return
+    for folder in map(Path, folders):
+        if folder.is_dir():
+            shutil.copyfile(source, folder / "multirun.yaml")
+    source.unlink()
+    _remove_empty([record])
 
 
 def _check_shared_folders(compose, hydra_config, sweep_dir, swept, jobs, launcher):
@@ -1270,7 +1296,7 @@ def main():
         raise Interrupted()
 
     previous = signal.signal(signal.SIGTERM, terminate)
-    chain, sweep_dir = [], None
+    chain, sweep_dir, folders = [], None, []
     try:
         flags = [arg for arg in args if arg.startswith("-")]
         inspect = _inspecting(known)
@@ -1284,7 +1310,8 @@ def main():
             # a sweep: Hydra's refusals (unknown key or experiment) as one line; each job
             # checks its own config
             try:
-                sweep_dir = compose_first_job([arg for arg in args if arg not in flags])
+                folders, sweep_dir = compose_first_job([arg for arg in args
+                                                        if arg not in flags])
             except InputError as error:
                 _error(error)
             chain = _start_sweep(sweep_dir)
@@ -1303,11 +1330,14 @@ def main():
             if done.code not in (0, None):
                 _remove_empty(chain)
             raise
+        finally:
+            if sweep_dir is not None:
+                _place_sweep_record(folders, sweep_dir)
         if sweep_dir is not None:
             _report_refused(chain)
     except KeyboardInterrupt:
-        if sweep_dir is not None:
-            _drop_partial_jobs(sweep_dir)
+        for folder in folders:
+            _drop_partial_jobs(folder)
         _remove_empty(chain)
         _interrupted(sweep=sweep_dir is not None)
     finally:

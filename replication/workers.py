@@ -12,6 +12,11 @@ numba's thread count changes no result (its parallel loops run independent jobs,
 summed in order); OpenBLAS's does, at round-off: the discrepancy studies moved by up to
 2.3e-7 relative between two and one BLAS threads, more where residuals are round-off.
 The pool of ``discrepancy_outside`` is its own (fork), as its documented sweep ran with.
+
+A daemonic process may not start processes (``multiprocessing`` refuses: "daemonic
+processes are not allowed to have children"): a Dask worker runs its tasks in one, so an
+experiment with ``workers: 2`` swept through ``hydra/launcher=dask`` ran into that
+traceback. :func:`usable_workers` makes such a process run its tasks itself.
 """
 
 from __future__ import annotations
@@ -47,6 +52,20 @@ def shared_threads(environ, shares, cpus=None):
         for name in THREAD_VARIABLES:
             environ.setdefault(name, threads)
     return environ
+
+
+def usable_workers(workers, what="tasks"):
+    """``workers``, or 1 in a daemonic process (a Dask worker, a pool's worker), which may
+    not start processes of its own; it then says so and runs its ``what`` itself, one after
+    another. Results do not depend on the number of workers."""
+    workers = int(workers)
+    if workers > 1 and multiprocessing.current_process().daemon:
+        from replication.progress import progress
+
+        progress(f"{what}: this process is a daemon (a Dask worker) and may not start "
+                 f"processes; it runs them itself, one at a time, not in {workers} processes")
+        return 1
+    return workers
 
 
 _KEPT = None  # while kept_pools() is open: (its ExitStack, {(workers, initializer): pool})
@@ -98,6 +117,13 @@ def process_pool(workers, initializer=None):
 @contextlib.contextmanager
 def _new_pool(workers, initializer):
     saved = dict(os.environ)
+    # a spawned worker sets the start method its parent's default context names; in a
+    # joblib (loky) worker that is "loky", which a plain spawned process cannot find
+    # ("cannot find context for 'loky'"): the pool's workers are told "spawn" instead
+    method = multiprocessing.get_start_method(allow_none=True)
+    foreign = method is not None and method not in multiprocessing.get_all_start_methods()
+    if foreign:
+        multiprocessing.set_start_method("spawn", force=True)
     # workers start when tasks arrive and read the environment then: it stays set (only
     # for this process's children: its own libraries started long ago) until the pool ends
     os.environ.update(shared_threads(os.environ, workers))
@@ -115,3 +141,5 @@ def _new_pool(workers, initializer):
     finally:
         os.environ.clear()
         os.environ.update(saved)
+        if foreign:
+            multiprocessing.set_start_method(method, force=True)

@@ -3,6 +3,7 @@
 import json
 import os
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -263,6 +264,23 @@ def test_a_sweep_over_experiments_into_one_folder_is_refused(tmp_path):
         compose_first_job(["experiment=fig08_mesh,cloth_reference", f"out={tmp_path}/${{seed}}"])
     compose_first_job(["experiment=fig08_mesh,cloth_reference", f"out={tmp_path}/${{name}}"])
     assert os.listdir(tmp_path) == []
+
+
+def test_a_sweep_over_experiments_records_itself_in_each_experiments_folder(tmp_path):
+    """experiment=fig08_mesh,cloth_reference wrote its multirun.yaml to multirun/None/ (the
+    sweep's own config names no experiment), and replicate-gather of each experiment's
+    folder could not tell a job missing. Each folder now holds it, and None/ is gone."""
+    done = run_cli("-m", "experiment=fig08_mesh,cloth_reference", "seed=3,4", "--quiet",
+                   f"hydra.sweep.dir={tmp_path}/" + "${name}")
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert sorted(os.listdir(tmp_path)) == ["cloth_reference", "fig08_mesh"]
+    for name in ("cloth_reference", "fig08_mesh"):
+        assert (tmp_path / name / "multirun.yaml").is_file()
+    shutil.rmtree(tmp_path / "cloth_reference" / "seed=4")
+    from replication.sweep import sweep_warnings
+
+    assert "1 of the 2 jobs of the last sweep" in " ".join(
+        sweep_warnings(tmp_path / "cloth_reference", ["seed=3"]))
 
 
 def test_two_experiments_without_a_sweep_are_one_line():

@@ -55,6 +55,20 @@ def gathered(folder):
                                for row in rows]
 
 
+def swept_and_plain(tmp_path, study, seeds, launcher):
+    """Sweep ``study`` over ``seeds`` (the first value is 3) through ``launcher``, and run it
+    plainly with seed 3; returns the two ``result.json`` paths of seed 3."""
+    folder = tmp_path / "sweep"
+    done = run_cli("-m", *study, *seeds, *launcher, f"hydra.sweep.dir={folder}")
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "Traceback" not in done.stderr
+    plain = run_cli(*study, "seed=3", f"out={tmp_path / 'plain'}")
+    assert plain.returncode == 0, plain.stderr[-3000:]
+    (swept,) = [p for p in folder.rglob("result.json") if "seed=3" in p.parent.name
+                or p.parent == folder]
+    return swept, tmp_path / "plain" / "result.json"
+
+
 @pytest.fixture(scope="module")
 def serial(tmp_path_factory):
     folder = tmp_path_factory.mktemp("serial") / "sweep"
@@ -140,6 +154,21 @@ def test_dask_sweep_on_its_own_local_cluster_gathers_to_the_serial_csv(tmp_path,
     assert gathered(folder) == serial
 
 
+def test_dask_job_of_an_experiment_with_worker_processes_runs_its_tasks_itself(tmp_path):
+    """A Dask worker is a daemonic process, which may not start processes: a job of an
+    experiment with worker processes (discrepancy_outside, study.workers=2) ended in
+    multiprocessing's "daemonic processes are not allowed to have children" traceback. Its
+    datasets now run in the worker itself, with the answers of a plain run's process pool."""
+    study = ["experiment=discrepancy_outside", "study.n_datasets=2",
+             "study.frames_range=[100,120]", "figure=null", "manifest=null"]
+    swept, plain = swept_and_plain(tmp_path, study, ["seed=3"], ["hydra/launcher=dask"])
+
+    def datasets(path):
+        rows = json.loads(path.read_text())["datasets"]
+        return [{k: v for k, v in row.items() if k != "wall_seconds"} for row in rows]
+    assert datasets(swept) == datasets(plain)
+
+
 def test_dask_sweep_with_a_failing_job_exits_2_and_keeps_the_other_jobs(tmp_path,
                                                                       dask_cluster):
     """A refused job (README.md is no trajectory) fails the sweep with one error line
@@ -177,6 +206,23 @@ def test_dask_settings_it_cannot_use_are_one_error_line(tmp_path, setting, messa
     # refused before Hydra's sweeper writes anything: no multirun.yaml that replicate-gather
     # would read as the folder's last sweep
     assert not (tmp_path / "sweep").exists() and not (tmp_path / "f").exists()
+
+
+def test_joblib_job_of_an_experiment_with_worker_processes_starts_them(tmp_path):
+    """In a joblib (loky) worker the default start method is "loky", which the spawned
+    processes of an experiment's own pool (cloth_baselines, workers: 2) could not find: every
+    job ended in "cannot find context for 'loky'" tracebacks. They now start, and give the
+    answers of a plain run."""
+    study = ["experiment=cloth_baselines", "n_seeds=1", "budgets=[30]",
+             f"figure_dir={tmp_path / 'figures'}"]
+    swept, plain = swept_and_plain(tmp_path, study, ["seed=3,4"],
+                                   ["hydra/launcher=joblib", "hydra.launcher.n_jobs=2"])
+
+    def answers(path):
+        runs = json.loads(path.read_text())["runs"]
+        return {(case, name): [(r["curve"], r["at_budget"]) for r in rows]
+                for case, by_name in runs.items() for name, rows in by_name.items()}
+    assert answers(swept) == answers(plain)
 
 
 def test_joblib_sweep_with_a_refused_job_runs_the_others_and_exits_2(tmp_path):

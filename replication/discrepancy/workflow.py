@@ -713,7 +713,7 @@ def analyse(trajectory, config=None, *, rng=None):
         kept = survivors if len(survivors) > len(kept) else kept
         if attempt == settings["reselect"]:
             # no selection pass left: keep what passed, refitted without the dropped terms
-            named = [(n, e) for n, e in named if n not in banned]
+            named = survivors
             current = _state(context, [n for n, _ in named], base_fit)
     named, current = _restore(context, named, current, kept, banned, base_fit)
     selected = [name for name, _ in named]

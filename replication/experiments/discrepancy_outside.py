@@ -31,6 +31,7 @@ from replication.progress import progress
 from replication.results import write_json_atomic
 from replication.sweep import cell_value
 from replication.testdata import cloth_outside as og
+from replication.workers import usable_workers
 
 
 def draw_specs(study, seed):
@@ -106,7 +107,7 @@ def outside_study(config, out):
     specs = draw_specs(study, config["seed"])
     settings = config.get("discrepancy") or {}
     rows = [None] * n_datasets
-    if workers == 1:
+    if usable_workers(workers, "datasets") == 1:
         with tempfile.TemporaryDirectory() as folder:
             for index, spec in enumerate(specs):
                 rows[index] = run_one(spec, settings, folder)

@@ -20,7 +20,7 @@ from replication.errors import InputError, check
 from replication.experiments.identify_common import check_common, load_cases, outcome, run_rng
 from replication.figures import cloth_baselines_ecdf
 from replication.progress import bar, progress
-from replication.workers import process_pool
+from replication.workers import process_pool, usable_workers
 
 
 def _check_optimisers(optimisers, paper_ea):
@@ -190,7 +190,7 @@ def _map(tasks, workers):
     """Run tasks in order, in ``workers`` processes (1: in this process). Every run is
     seeded on its own, so the results do not depend on the number of workers."""
     label = "runs (reference x optimiser x seed)"
-    if workers == 1:
+    if usable_workers(workers, label) == 1:
         threads = numba.get_num_threads()
         try:
             return [_one_run(task) for task in bar(tasks, label)]

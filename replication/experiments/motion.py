@@ -349,9 +349,9 @@ def _case(args):
 
 def _run_cases(cases, workers):
     """Results of :func:`_case` for every case, in order, on ``workers`` processes."""
-    from replication.workers import process_pool
+    from replication.workers import process_pool, usable_workers
 
-    if workers == 1:
+    if usable_workers(workers, "sequences x noise levels") == 1:
         import numba
 
         threads = numba.get_num_threads()

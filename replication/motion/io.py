@@ -48,12 +48,13 @@ def _fail(path, field, found, expected):
     raise InputError(f"{path}: {field}: found {found}; expected {expected}")
 
 
+FULL_SCALE = {"uint8": 255.0, "uint16": 65535.0}   # integer dtypes read as 0..1
+
+
 def _to_float(path, field, array):
     array = np.asarray(array)
-    if array.dtype == np.uint8:
-        return array.astype(float) / 255.0
-    if array.dtype == np.uint16:
-        return array.astype(float) / 65535.0
+    if array.dtype.name in FULL_SCALE:
+        return array.astype(float) / FULL_SCALE[array.dtype.name]
     if array.dtype == np.bool_ or not np.issubdtype(array.dtype, np.number) \
             or np.iscomplexobj(array):
         _fail(path, field, f"dtype {array.dtype}", "real numbers (8- or 16-bit or float)")
@@ -324,7 +325,7 @@ LOSSY_FORMATS = ("JPEG", "MPO")
 
 def _scale(dtype):
     """How :func:`_to_float` scales a dtype: 8- and 16-bit to 0..1, others as stored."""
-    return "scaled" if dtype in ("uint8", "uint16") else "as stored"
+    return "scaled" if dtype in FULL_SCALE else "as stored"
 
 
 def _note_frame_kinds(folder, files, kinds):

@@ -57,7 +57,15 @@ def shared_threads(environ, shares, cpus=None):
 def usable_workers(workers, what="tasks"):
     """``workers``, or 1 in a daemonic process (a Dask worker, a pool's worker), which may
     not start processes of its own; it then says so and runs its ``what`` itself, one after
-    another. Results do not depend on the number of workers."""
+    another. Results do not depend on the number of workers.
+
+    Parameters
+    ----------
+    workers : int
+        Processes the experiment asks for.
+    what : str
+        What the tasks are, for the message.
+    """
     workers = int(workers)
     if workers > 1 and multiprocessing.current_process().daemon:
         from replication.progress import progress

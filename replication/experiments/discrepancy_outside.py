@@ -16,10 +16,9 @@ definition) is a config value, stated with the rates above and below it.
 
 from __future__ import annotations
 
-import os
 import tempfile
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import as_completed
 from pathlib import Path
 
 import numpy as np
@@ -31,7 +30,7 @@ from replication.progress import progress
 from replication.results import write_json_atomic
 from replication.sweep import cell_value
 from replication.testdata import cloth_outside as og
-from replication.workers import usable_workers
+from replication.workers import process_pool, usable_workers
 
 
 def draw_specs(study, seed):
@@ -113,8 +112,7 @@ def outside_study(config, out):
                 rows[index] = run_one(spec, settings, folder)
                 _report(index, n_datasets, rows[index])
     else:
-        os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")   # idle numba threads yield
-        with ProcessPoolExecutor(max_workers=workers) as pool:
+        with process_pool(workers) as pool:
             # one task per dataset, reported as each finishes; rows stay in spec order
             futures = {pool.submit(_run_in_worker, (spec, settings)): index
                        for index, spec in enumerate(specs)}

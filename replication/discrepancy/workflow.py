@@ -16,8 +16,9 @@ Steps, each a call into a lower module:
    A named force whose coefficients change over stretches of time or between halves of
    the mesh is dropped again (:func:`constancy`).
 4. Structure that the named effects leave (more than ``unexplained_fraction`` of the excess
-   ``Q`` of the base model, and ``Q`` above the threshold) is reported as unexplained, with
-   when (time windows) and where (mesh patches) it is.
+   ``Q`` of the base model, and ``Q`` above the threshold; or ``Q`` above
+   :data:`EXACT_FORM_Q` when only forces of exact form are named) is reported as
+   unexplained, with when (time windows) and where (mesh patches) it is.
 """
 
 from __future__ import annotations
@@ -77,6 +78,17 @@ VETO_WAIVER_Q = 2.0
 # ... as long as the rollout error at most doubles (a bound, not a measurement: the case
 # seen worsened by 10%)
 VETO_WAIVER_ROLLOUT = 2.0
+# Forces whose library form is the physical law itself (not a profile or a surface model):
+# with only these named and right, a noise-free fit is exact and leaves round-off, so the
+# structure they leave is not measured as a share of the base model's excess (that share
+# shrinks with the size of the named effect) but against an absolute level.
+EXACT_FORM = frozenset({"body_force", "linear_damping", "quadratic_drag", "spring_damping"})
+# Q left above this with only EXACT_FORM names is unexplained whatever its share. Seen in a
+# one-off study (outside generator, seeds 41-43, not the report's 11, the sweep's 4-6 nor
+# 31-33; not kept in the suite): noise-free, right names of these forces only left Q at most
+# 4e-10 (81 sets), noisy ones at most 1.5 (31); an outside effect beside them left 190 to
+# 2e6 (14) with under 1% of the excess. 30 sits between 1.5 and 190 (log scale).
+EXACT_FORM_Q = 30.0
 
 
 def settings_from(config):
@@ -733,7 +745,8 @@ def analyse(trajectory, config=None, *, rng=None):
     generalises = generalisation(data, final, frames, held, located["noise_sigma_h"])
     unexplained = None
     if q_current > settings["q_threshold"] and (
-            not selected or remaining > settings["unexplained_fraction"]):
+            not selected or remaining > settings["unexplained_fraction"]
+            or (set(selected) <= EXACT_FORM and q_current > EXACT_FORM_Q)):
         unexplained = {"Q": q_current, "q_threshold": settings["q_threshold"],
                        "remaining_fraction": float(remaining),
                        **_when_and_where(located_final, settings, data.scene.dt),

@@ -1044,18 +1044,28 @@ def compose_first_job(args):
     return folders, record
 
 
-def _place_sweep_record(folders, record):
+def _place_sweep_record(folders, record, task):
     """After a sweep over experiments, put the ``multirun.yaml`` Hydra wrote to ``record``
     (``multirun/None``: the sweep's own config names no experiment) into each experiment's
     sweep folder that exists, where ``replicate-gather`` reads it (which jobs the sweep
-    made), and remove ``record`` when that leaves it empty."""
+    made), and remove ``record`` when that leaves it empty. Only when the file is this
+    sweep's (its task overrides are ``task``): a sweep over experiments started since
+    writes the same file and moves its own. A failure is a warning: the sweep's own
+    outcome (its status, Ctrl-C's clean-up) comes first."""
     source = Path(record) / "multirun.yaml"
     if record in folders or not source.is_file():
         return
-    for folder in map(Path, folders):
-        if folder.is_dir():
-            shutil.copyfile(source, folder / "multirun.yaml")
-    source.unlink()
+    try:
+        if list(OmegaConf.load(source).hydra.overrides.task) != list(task):
+            return
+        for folder in map(Path, folders):
+            if folder.is_dir():
+                shutil.copyfile(source, folder / "multirun.yaml")
+        source.unlink()
+    except Exception as error:  # noqa: BLE001  (a disk error, a file not Hydra's)
+        print(f"warning: {source}: not moved into the experiments' sweep folders ({error}); "
+              "replicate-gather cannot tell missing jobs there", file=sys.stderr)
+        return
     _remove_empty([record])
 
 
@@ -1332,7 +1342,9 @@ def main():
             raise
         finally:
             if sweep_dir is not None:
-                _place_sweep_record(folders, sweep_dir)
+                _place_sweep_record(folders, sweep_dir,
+                                    [arg for arg in args if not arg.startswith("-")
+                                     and not arg.lstrip("+~").startswith("hydra")])
         if sweep_dir is not None:
             _report_refused(chain)
     except KeyboardInterrupt:

@@ -26,6 +26,7 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import os
+import sys
 from concurrent.futures import ProcessPoolExecutor
 
 THREAD_VARIABLES = ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS",
@@ -58,8 +59,9 @@ def shared_threads(environ, shares, cpus=None):
 
 def usable_workers(workers, what="tasks"):
     """``workers``, or 1 in a daemonic process (a Dask worker, a pool's worker), which may
-    not start processes of its own; it then says so and runs its ``what`` itself, one after
-    another. Results do not depend on the number of workers.
+    not start processes of its own; it then says so (a ``note:`` line on stderr, once per
+    process) and runs its ``what`` itself, one after another. Results do not depend on the
+    number of workers (up to BLAS round-off: see above).
 
     Parameters
     ----------
@@ -68,14 +70,20 @@ def usable_workers(workers, what="tasks"):
     what : str
         What the tasks are, for the message.
     """
+    global _SAID_DAEMON
     workers = int(workers)
     if workers > 1 and multiprocessing.current_process().daemon:
-        from replication.progress import progress
-
-        progress(f"{what}: this process is a daemon (a Dask worker) and may not start "
-                 f"processes; it runs them itself, one at a time, not in {workers} processes")
+        if not _SAID_DAEMON:   # once: a study runs its experiment many times
+            print(f"note: {what}: this process is a daemon (a Dask worker, say) and may not "
+                  f"start processes; it runs its tasks itself, one at a time, not in "
+                  f"{workers} processes (same answers, up to BLAS round-off)",
+                  file=sys.stderr, flush=True)
+            _SAID_DAEMON = True
         return 1
     return workers
+
+
+_SAID_DAEMON = False
 
 
 _KEPT = None  # while kept_pools() is open: (its ExitStack, {(workers, initializer): pool})
@@ -132,12 +140,13 @@ def _new_pool(workers, initializer):
     # ("cannot find context for 'loky'"): the pool's workers are told "spawn" instead
     method = multiprocessing.get_start_method(allow_none=True)
     foreign = method is not None and method not in multiprocessing.get_all_start_methods()
-    if foreign:
-        multiprocessing.set_start_method("spawn", force=True)
-    # workers start when tasks arrive and read the environment then: it stays set (only
-    # for this process's children: its own libraries started long ago) until the pool ends
-    os.environ.update(shared_threads(os.environ, workers))
     try:
+        if foreign:
+            multiprocessing.set_start_method("spawn", force=True)
+        # workers start when tasks arrive and read the environment then: it stays set (only
+        # for this process's children: its own libraries started long ago) until the pool
+        # ends
+        os.environ.update(shared_threads(os.environ, workers))
         context = multiprocessing.get_context("spawn")
         pool = ProcessPoolExecutor(max_workers=workers, mp_context=context,
                                    initializer=initializer)

@@ -283,6 +283,26 @@ def test_a_sweep_over_experiments_records_itself_in_each_experiments_folder(tmp_
         sweep_warnings(tmp_path / "cloth_reference", ["seed=3"]))
 
 
+def test_a_sweep_moves_only_its_own_record(tmp_path):
+    """A sweep over experiments started while another runs writes multirun/None/multirun.yaml
+    again: each sweep moves only the record of its own overrides."""
+    from omegaconf import OmegaConf
+
+    from replication.cli import _place_sweep_record
+
+    record, folders = tmp_path / "None", [str(tmp_path / "a"), str(tmp_path / "b")]
+    for folder in [record, *folders]:
+        folder = Path(folder)
+        folder.mkdir()
+    OmegaConf.save({"hydra": {"overrides": {"task": ["experiment=a,b", "seed=1,2"]}}},
+                   record / "multirun.yaml")
+    _place_sweep_record(folders, str(record), ["experiment=a,b", "seed=3,4"])
+    assert (record / "multirun.yaml").is_file() and not (tmp_path / "a" / "multirun.yaml").exists()
+    _place_sweep_record(folders, str(record), ["experiment=a,b", "seed=1,2"])
+    assert not record.exists()
+    assert all((Path(folder) / "multirun.yaml").is_file() for folder in folders)
+
+
 def test_two_experiments_without_a_sweep_are_one_line():
     done = run_cli("experiment=fig08_mesh,cloth_ci")
     assert done.returncode == 2 and done.stderr == (

@@ -62,6 +62,7 @@ def swept_and_plain(tmp_path, study, seeds, launcher):
     done = run_cli("-m", *study, *seeds, *launcher, f"hydra.sweep.dir={folder}")
     assert done.returncode == 0, done.stderr[-3000:]
     assert "Traceback" not in done.stderr
+    (tmp_path / "sweep.stderr").write_text(done.stderr)
     plain = run_cli(*study, "seed=3", f"out={tmp_path / 'plain'}")
     assert plain.returncode == 0, plain.stderr[-3000:]
     (swept,) = [p for p in folder.rglob("result.json") if "seed=3" in p.parent.name
@@ -162,6 +163,7 @@ def test_dask_job_of_an_experiment_with_worker_processes_runs_its_tasks_itself(t
     study = ["experiment=discrepancy_outside", "study.n_datasets=2",
              "study.frames_range=[100,120]", "figure=null", "manifest=null"]
     swept, plain = swept_and_plain(tmp_path, study, ["seed=3"], ["hydra/launcher=dask"])
+    assert "is a daemon" in (tmp_path / "sweep.stderr").read_text()   # ran in the worker
 
     def datasets(path):
         rows = json.loads(path.read_text())["datasets"]

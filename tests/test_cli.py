@@ -292,8 +292,7 @@ def test_a_sweep_moves_only_its_own_record(tmp_path):
 
     record, folders = tmp_path / "None", [str(tmp_path / "a"), str(tmp_path / "b")]
     for folder in [record, *folders]:
-        folder = Path(folder)
-        folder.mkdir()
+        Path(folder).mkdir()
     OmegaConf.save({"hydra": {"overrides": {"task": ["experiment=a,b", "seed=1,2"]}}},
                    record / "multirun.yaml")
     _place_sweep_record(folders, str(record), ["experiment=a,b", "seed=3,4"])

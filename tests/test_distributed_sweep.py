@@ -57,17 +57,17 @@ def gathered(folder):
 
 def swept_and_plain(tmp_path, study, seeds, launcher):
     """Sweep ``study`` over ``seeds`` (the first value is 3) through ``launcher``, and run it
-    plainly with seed 3; returns the two ``result.json`` paths of seed 3."""
+    plainly with seed 3; returns the two ``result.json`` paths of seed 3 and the sweep's
+    stderr."""
     folder = tmp_path / "sweep"
     done = run_cli("-m", *study, *seeds, *launcher, f"hydra.sweep.dir={folder}")
     assert done.returncode == 0, done.stderr[-3000:]
     assert "Traceback" not in done.stderr
-    (tmp_path / "sweep.stderr").write_text(done.stderr)
     plain = run_cli(*study, "seed=3", f"out={tmp_path / 'plain'}")
     assert plain.returncode == 0, plain.stderr[-3000:]
     (swept,) = [p for p in folder.rglob("result.json") if "seed=3" in p.parent.name
                 or p.parent == folder]
-    return swept, tmp_path / "plain" / "result.json"
+    return swept, tmp_path / "plain" / "result.json", done.stderr
 
 
 @pytest.fixture(scope="module")
@@ -162,8 +162,8 @@ def test_dask_job_of_an_experiment_with_worker_processes_runs_its_tasks_itself(t
     datasets now run in the worker itself, with the answers of a plain run's process pool."""
     study = ["experiment=discrepancy_outside", "study.n_datasets=2",
              "study.frames_range=[100,120]", "figure=null", "manifest=null"]
-    swept, plain = swept_and_plain(tmp_path, study, ["seed=3"], ["hydra/launcher=dask"])
-    assert "is a daemon" in (tmp_path / "sweep.stderr").read_text()   # ran in the worker
+    swept, plain, err = swept_and_plain(tmp_path, study, ["seed=3"], ["hydra/launcher=dask"])
+    assert "is a daemon" in err   # the tasks ran in the worker
 
     def datasets(path):
         rows = json.loads(path.read_text())["datasets"]
@@ -217,7 +217,7 @@ def test_joblib_job_of_an_experiment_with_worker_processes_starts_them(tmp_path)
     answers of a plain run."""
     study = ["experiment=cloth_baselines", "n_seeds=1", "budgets=[30]",
              f"figure_dir={tmp_path / 'figures'}"]
-    swept, plain = swept_and_plain(tmp_path, study, ["seed=3,4"],
+    swept, plain, _ = swept_and_plain(tmp_path, study, ["seed=3,4"],
                                    ["hydra/launcher=joblib", "hydra.launcher.n_jobs=2"])
 
     def answers(path):

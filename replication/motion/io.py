@@ -364,7 +364,8 @@ def _note_uneven_numbers(folder, files):
         _note(folder, f"{files[at].name} and {files[at + 1].name} share the number "
               f"{values[at]}: both are read, in name order, as frames one step apart")
         return
-    usual = int(np.bincount(steps).argmax())   # the most common step (the smallest of ties)
+    unique, counts = np.unique(steps, return_counts=True)
+    usual = int(unique[counts.argmax()])   # the most common step (the smallest of ties)
     if np.all(steps == usual):
         return
     odd = [i for i, step in enumerate(steps) if step != usual]

@@ -126,6 +126,8 @@ def test_notes_on_jpeg_data_behind_a_png_suffix_and_mixed_dtypes(tmp_path, capsy
     ("frame_0 frame_2 frame_4 frame_6", None), ("frame_3 frame_4 frame_5 frame_6", None),
     ("f_10 f_11 f_13", "(most step by 1; f_11.png -> f_13.png by 2)"),
     ("a_1 a_1b a_2 a_3", "a_1.png and a_1b.png share the number 1"),
+    # a step far beyond the others (counted once, not in a table as long as the step)
+    ("t_1 t_2 t_3 t_99999999999", "(most step by 1; t_3.png -> t_99999999999.png by 99999999996)"),
 ])
 def test_note_on_unevenly_numbered_frames(tmp_path, capsys, names, noted):
     """Frames 0, 1, 2, 4 (a dropped frame) were read as evenly spaced, silently; the pair

@@ -1306,7 +1306,7 @@ def main():
         raise Interrupted()
 
     previous = signal.signal(signal.SIGTERM, terminate)
-    chain, record, folders = [], None, []
+    chain, sweep_dir, folders = [], None, []
     try:
         flags = [arg for arg in args if arg.startswith("-")]
         inspect = _inspecting(known)
@@ -1320,11 +1320,11 @@ def main():
             # a sweep: Hydra's refusals (unknown key or experiment) as one line; each job
             # checks its own config
             try:
-                folders, record = compose_first_job([arg for arg in args
-                                                     if arg not in flags])
+                folders, sweep_dir = compose_first_job([arg for arg in args
+                                                        if arg not in flags])
             except InputError as error:
                 _error(error)
-            chain = _start_sweep(record)
+            chain = _start_sweep(sweep_dir)
         if set(flags) <= {"-r", "--run"}:
             # a single run: refuse bad config before Hydra creates the run folder
             try:
@@ -1341,17 +1341,17 @@ def main():
                 _remove_empty(chain)
             raise
         finally:
-            if record is not None:
-                _place_sweep_record(folders, record,
+            if sweep_dir is not None:
+                _place_sweep_record(folders, sweep_dir,
                                     [arg for arg in args if not arg.startswith("-")
                                      and not arg.lstrip("+~").startswith("hydra")])
-        if record is not None:
+        if sweep_dir is not None:
             _report_refused(chain)
     except KeyboardInterrupt:
         for folder in folders:
             _drop_partial_jobs(folder)
         _remove_empty(chain)
-        _interrupted(sweep=record is not None)
+        _interrupted(sweep=sweep_dir is not None)
     finally:
         signal.signal(signal.SIGTERM, previous)
         os.environ.pop(SWEEP_ENVIRONMENT, None)

@@ -523,14 +523,22 @@ def test_ctrl_c_or_sigterm_during_the_sweep_exits_130_and_writes_nothing(tmp_pat
     work = tmp_path / "work"
     command = [sys.executable, "-m", "replication.cli", "experiment=motion_single",
                f"data.path={data}", f"out={work / 'out'}", "method.omega_count=20000"]
+    # SIGINT as in a terminal: a shell starts background jobs (`pytest ... &`, nohup) with
+    # SIGINT ignored, their children inherit that, and Python then installs no handler
     process = subprocess.Popen(command, cwd=ROOT, stderr=subprocess.PIPE, text=True,
-                               env=dict(os.environ, PYTHONPATH=str(ROOT)))
-    deadline = time.monotonic() + 60
-    while not (work / "out").exists() and time.monotonic() < deadline:
-        time.sleep(0.1)
-    time.sleep(2.0)  # inside the sweep
-    process.send_signal(signum)
-    _, err = process.communicate(timeout=60)
+                               env=dict(os.environ, PYTHONPATH=str(ROOT)),
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        deadline = time.monotonic() + 60
+        while not (work / "out").exists() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        time.sleep(2.0)  # inside the sweep
+        process.send_signal(signum)
+        _, err = process.communicate(timeout=60)
+    finally:  # a run that ignored the signal must not go on using a CPU after the test
+        if process.poll() is None:
+            process.kill()
+            process.communicate()
     assert process.returncode == 130, err
     assert "Traceback" not in err and "error: interrupted" in err
     assert sorted(os.listdir(tmp_path)) == ["seq.npz"]

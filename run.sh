@@ -16,7 +16,8 @@ setup() {
     .venv/bin/python -m pip install --quiet --upgrade "pip==26.3" >&2
     .venv/bin/python -m pip install --quiet -r requirements.lock >&2
     .venv/bin/python -m pip install --quiet --no-deps -e . >&2
-    .venv/bin/python -m pip install --quiet "pytest==9.2.0" "ruff==0.17.6" >&2
+    .venv/bin/python -m pip install --quiet "pytest==9.2.0" "pytest-xdist==3.8.0" "execnet==2.1.2" \
+      "ruff==0.17.6" >&2
     rm -f .venv/.installed-*
     touch "$stamp"
   fi
@@ -24,7 +25,9 @@ setup() {
 
 case "${1:-}" in
   all)  setup; shift; exec .venv/bin/replicate-all "$@" ;;
-  test) setup; shift; exec .venv/bin/python -m pytest "$@" ;;
+  # one pytest worker per CPU (pytest-xdist), idle workers taking tests from busy ones;
+  # `bash run.sh test -n 0` runs them in one process
+  test) setup; shift; exec .venv/bin/python -m pytest -n auto --dist worksteal "$@" ;;
   setup) setup ;;
   *) echo "usage: bash run.sh all|test|setup [args]" >&2; exit 2 ;;
 esac

@@ -14,6 +14,8 @@ ROOT = Path(__file__).resolve().parent.parent
 
 def pytest_sessionfinish(session, exitstatus):
     """Write ``results/tests.json`` after a run of the whole suite (not a selection)."""
+    if hasattr(session.config, "workerinput"):  # a pytest-xdist worker: the controller writes
+        return
     options = session.config.option
     if (options.file_or_dir or options.keyword or options.markexpr or options.maxfail
             or options.collectonly):

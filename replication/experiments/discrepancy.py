@@ -108,13 +108,22 @@ def calibration(config, out):
 
 
 def _coefficient_error(spec, named, mass):
+    """Relative error of the fitted coefficients of a correct name, and the largest
+    ``|fitted - truth| / standard error`` over them (``(None, None)`` when the name is wrong
+    or the effect has no coefficients to compare; the ratio None without standard errors)."""
     truth = gen.truth_coefficients(spec, mass)
     if truth is None or not named or named[0]["name"] != spec["effect"]:
-        return None
-    fitted = np.array(list(named[0]["parameters"]["coefficients"].values()))
+        return None, None
+    parameters = named[0]["parameters"]
+    fitted = np.array(list(parameters["coefficients"].values()))
     if fitted.shape != np.shape(truth):
-        return None   # the library parametrises this effect differently (profiles)
-    return float(np.linalg.norm(fitted - truth) / np.linalg.norm(truth))
+        return None, None   # the library parametrises this effect differently (profiles)
+    error = float(np.linalg.norm(fitted - truth) / np.linalg.norm(truth))
+    se = parameters.get("standard_errors")
+    if not se:
+        return error, None
+    se = np.array(list(se.values()))
+    return error, float(np.max(np.abs(fitted - truth) / np.maximum(se, np.finfo(float).tiny)))
 
 
 def blind_study(config, out):
@@ -138,12 +147,13 @@ def blind_study(config, out):
         named = [effect["name"] for effect in result["named_effects"]]
         call = named[0] if named else ("unexplained" if result["unexplained"] else "none")
         expected = "unexplained" if spec["effect"] in gen.OUTSIDE_EFFECTS else spec["effect"]
+        error, z_max = _coefficient_error(spec, result["named_effects"], 0.001)
         rows.append({
             "index": index, "spec": spec, "call": call, "correct": call == expected,
             "expected": expected,
             "gap_before": result["gap_before"], "gap_after": result["gap_after"],
             "Q": result["where"]["Q"], "noise_sigma_h_estimate": result["where"]["noise_sigma_h"],
-            "coefficient_error": _coefficient_error(spec, result["named_effects"], 0.001),
+            "coefficient_error": error, "coefficient_z_max": z_max,
             "wall_seconds": wall, "positions_sha256": digest,
         })
         progress(f"blind {index + 1}/{n_datasets}: hidden {spec['effect']} "
@@ -176,6 +186,15 @@ def summarise(rows, study):
     shrink = [r["gap_before"] / r["gap_after"] for r in library
               if r["correct"] and r["gap_after"] > 0]
     errors = [r["coefficient_error"] for r in library if r["coefficient_error"] is not None]
+    # do the stated standard errors cover the truth? (rows written before they were kept
+    # have no coefficient_z_max)
+    z = [r.get("coefficient_z_max") for r in library if r["coefficient_error"] is not None]
+    z = [v for v in z if v is not None]
+    beyond = [{"index": r["index"], "effect": r["spec"]["effect"],
+               "noise_h": r["spec"]["noise_h"], "error": r["coefficient_error"],
+               "z_max": r.get("coefficient_z_max")}
+              for r in library if r["coefficient_error"] is not None
+              and r["coefficient_error"] > 0.1]
 
     def rate(subset):
         return float(np.mean([r["correct"] for r in subset])) if subset else None
@@ -195,6 +214,9 @@ def summarise(rows, study):
         "gap_shrink": shrink,
         "coefficient_error_median": float(np.median(errors)) if errors else None,
         "coefficient_within_10pct": float(np.mean(np.array(errors) <= 0.1)) if errors else None,
+        "coefficient_within_2se": float(np.mean(np.array(z) <= 2.0)) if z else None,
+        "coefficient_z_max": float(np.max(z)) if z else None,
+        "coefficient_beyond_10pct": beyond,
         "wall_seconds_median": float(np.median([r["wall_seconds"] for r in rows])),
         "wall_seconds_max": float(np.max([r["wall_seconds"] for r in rows])),
     }

@@ -303,3 +303,33 @@ def test_the_outside_summary_counts_wrong_and_exact_answers_that_carry_a_warning
     summary = summarise(rows, 30.0)
     assert (summary["n_wrong"], summary["wrong_warned"], summary["exact_warned"]) == (2, 1, 1)
     assert (summary["wrong_caveat"], summary["exact_caveat"]) == (1, 1)
+
+
+def test_the_blind_summary_says_whether_stated_standard_errors_cover_the_truth():
+    """A correct name's coefficient error and its largest |fitted - truth| / standard error:
+    drag of 0.5/s per mass (truth 5e-4 at mass 0.001) fitted 6e-4 +- 2.5e-5 is 20% off and 4
+    standard errors away; without standard errors the ratio is None; a wrong name has none."""
+    from replication.experiments.discrepancy import _coefficient_error, summarise
+
+    spec = {"effect": "linear_damping", "truth": {"per_mass": [0.5]}, "noise_h": 1e-3}
+
+    def named(value, se):
+        return [{"name": "linear_damping", "parameters": {
+            "coefficients": {"c": value}, "standard_errors": None if se is None else {"c": se}}}]
+
+    assert _coefficient_error(spec, named(6e-4, 2.5e-5), 0.001) == pytest.approx((0.2, 4.0))
+    assert _coefficient_error(spec, named(5.1e-4, None), 0.001) == pytest.approx((0.02, None))
+    assert _coefficient_error(spec, [{"name": "quadratic_drag", "parameters": {}}],
+                              0.001) == (None, None)
+
+    def row(index, error, z):
+        return {"index": index, "spec": spec, "expected": "linear_damping", "call":
+                "linear_damping", "correct": True, "gap_before": 2.0, "gap_after": 1.0,
+                "coefficient_error": error, "coefficient_z_max": z, "wall_seconds": 1.0}
+
+    summary = summarise([row(0, 0.01, 0.5), row(1, 0.2, 1.5), row(2, 0.3, 4.0)],
+                        {"moderate_noise_h": 1e-3})
+    assert summary["coefficient_within_2se"] == pytest.approx(2 / 3)
+    assert summary["coefficient_z_max"] == 4.0
+    assert [b["index"] for b in summary["coefficient_beyond_10pct"]] == [1, 2]
+    assert summary["coefficient_beyond_10pct"][1]["z_max"] == 4.0

@@ -238,8 +238,12 @@ def blind_section(result):
         f"| coefficients within 10% | | {_pct(s['coefficient_within_10pct'])} |",
         *([f"| truth within 2 standard errors of every fitted coefficient | | "
            f"{_pct(s['coefficient_within_2se'])} (largest error "
-           f"{fmt(s['coefficient_z_max'], 3)} standard errors) |"]
-          if s.get("coefficient_within_2se") is not None else []),
+           f"{fmt(s['coefficient_z_max'], 3)} standard errors) |",
+           f"| coefficients within 1 / 2 standard errors of the truth (68% / 95% were "
+           f"the errors exact and normal; n={s['coefficient_z_within']['n']}) | | "
+           f"{_pct(s['coefficient_z_within']['1'])} / {_pct(s['coefficient_z_within']['2'])} "
+           f"(median {fmt(s['coefficient_z_median'], 2)} standard errors; 0.67 if exact) |"]
+          if s.get("coefficient_z_within") else []),
         f"| analysis time per dataset (median / max) | | "
         f"{fmt(s['wall_seconds_median'], 3)} s / {fmt(s['wall_seconds_max'], 3)} s |",
         "",

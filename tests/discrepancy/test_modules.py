@@ -317,7 +317,8 @@ def test_the_blind_summary_says_whether_stated_standard_errors_cover_the_truth()
         return [{"name": "linear_damping", "parameters": {
             "coefficients": {"c": value}, "standard_errors": None if se is None else {"c": se}}}]
 
-    assert _coefficient_error(spec, named(6e-4, 2.5e-5), 0.001) == pytest.approx((0.2, 4.0))
+    error, z = _coefficient_error(spec, named(6e-4, 2.5e-5), 0.001)
+    assert (error, z) == (pytest.approx(0.2), [pytest.approx(4.0)])
     assert _coefficient_error(spec, named(5.1e-4, None), 0.001) == pytest.approx((0.02, None))
     assert _coefficient_error(spec, [{"name": "quadratic_drag", "parameters": {}}],
                               0.001) == (None, None)
@@ -325,11 +326,13 @@ def test_the_blind_summary_says_whether_stated_standard_errors_cover_the_truth()
     def row(index, error, z):
         return {"index": index, "spec": spec, "expected": "linear_damping", "call":
                 "linear_damping", "correct": True, "gap_before": 2.0, "gap_after": 1.0,
-                "coefficient_error": error, "coefficient_z_max": z, "wall_seconds": 1.0}
+                "coefficient_error": error, "coefficient_z": z, "wall_seconds": 1.0}
 
-    summary = summarise([row(0, 0.01, 0.5), row(1, 0.2, 1.5), row(2, 0.3, 4.0)],
+    summary = summarise([row(0, 0.01, [0.5]), row(1, 0.2, [1.5, 0.2]), row(2, 0.3, [4.0])],
                         {"moderate_noise_h": 1e-3})
     assert summary["coefficient_within_2se"] == pytest.approx(2 / 3)
     assert summary["coefficient_z_max"] == 4.0
+    assert summary["coefficient_z_median"] == pytest.approx(1.0)   # of 0.2, 0.5, 1.5, 4
+    assert summary["coefficient_z_within"] == {"1": 0.5, "2": 0.75, "n": 4}
     assert [b["index"] for b in summary["coefficient_beyond_10pct"]] == [1, 2]
     assert summary["coefficient_beyond_10pct"][1]["z_max"] == 4.0

@@ -188,8 +188,7 @@ def summarise(rows, study):
     errors = [r["coefficient_error"] for r in library if r["coefficient_error"] is not None]
     # do the stated standard errors cover the truth? (|error| / standard error: within 1 for
     # 68% and 2 for 95% of coefficients, median 0.674, were they exact and the errors normal)
-    z = {r["index"]: r.get("coefficient_z") for r in library
-         if r["coefficient_error"] is not None and r.get("coefficient_z")}
+    z = {r["index"]: r["coefficient_z"] for r in library if r.get("coefficient_z")}
     pooled = np.concatenate(list(z.values())) if z else np.zeros(0)
     beyond = [{"index": r["index"], "effect": r["spec"]["effect"],
                "noise_h": r["spec"]["noise_h"], "error": r["coefficient_error"],

@@ -3,6 +3,8 @@ no fitting, only counting)."""
 
 from __future__ import annotations
 
+from scipy.stats import norm
+
 from replication.experiments.discrepancy_outside import (
     SWEEP_CSV,
     outside_study,
@@ -12,6 +14,11 @@ from replication.experiments.discrepancy_outside import (
 from replication.provenance import accepted_code_hashes
 from replication.report.build import Section, SummaryRow, fmt
 from replication.testdata import cloth_outside as og
+
+# |error| / standard error of exact standard errors and normal errors: the shares within 1
+# and 2, and the median
+EXACT_WITHIN = {"1": 2 * norm.cdf(1.0) - 1, "2": 2 * norm.cdf(2.0) - 1}
+EXACT_MEDIAN = norm.ppf(0.75)
 
 BEYOND = "beyond the paper"
 
@@ -239,10 +246,12 @@ def blind_section(result):
         *([f"| truth within 2 standard errors of every fitted coefficient | | "
            f"{_pct(s['coefficient_within_2se'])} (largest error "
            f"{fmt(s['coefficient_z_max'], 3)} standard errors) |",
-           f"| coefficients within 1 / 2 standard errors of the truth (68% / 95% were "
-           f"the errors exact and normal; n={s['coefficient_z_within']['n']}) | | "
+           f"| coefficients within 1 / 2 standard errors of the truth ("
+           f"{_pct(EXACT_WITHIN['1'])} / {_pct(EXACT_WITHIN['2'])} were the errors exact "
+           f"and normal; n={s['coefficient_z_within']['n']}) | | "
            f"{_pct(s['coefficient_z_within']['1'])} / {_pct(s['coefficient_z_within']['2'])} "
-           f"(median {fmt(s['coefficient_z_median'], 2)} standard errors; 0.67 if exact) |"]
+           f"(median {fmt(s['coefficient_z_median'], 2)} standard errors; "
+           f"{fmt(EXACT_MEDIAN, 2)} if exact) |"]
           if s.get("coefficient_z_within") else []),
         f"| analysis time per dataset (median / max) | | "
         f"{fmt(s['wall_seconds_median'], 3)} s / {fmt(s['wall_seconds_max'], 3)} s |",
@@ -271,7 +280,7 @@ def blind_section(result):
     shrink = s["gap_shrink_median"]
     error = s["coefficient_error_median"]
     within = s["coefficient_within_10pct"]
-    covered = [b["z_max"] for b in s.get("coefficient_beyond_10pct") or []]
+    covered = [b["z_max"] for b in beyond]
     covered = (f"; the {len(covered)} beyond 10% are {fmt(max(covered), 3)} standard errors "
                "or less from the truth" if covered and None not in covered else "")
     rows = [

@@ -33,6 +33,7 @@ from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
 from replication.errors import InputError, one_line_error
+from replication.machine import reference_seconds
 from replication.progress import ENVIRONMENT, MODES, bar, check_environment, mode_for
 from replication.provenance import PROJECT_ROOT, inputs_hash, run_provenance
 from replication.report.build import CONFIG_DIR, build_report, experiment_entries
@@ -494,6 +495,7 @@ def _main(argv=None):
               "(always) and REPORT.md; nothing was run or written (--dry-run)", flush=True)
         return 0
     print(f"{len(todo)} experiment(s) to run, {args.jobs} at a time", flush=True)
+    reference = reference_seconds()   # the machine's speed now (replication/machine.py)
     with mode_for("none" if args.quiet else args.progress):
         outcome = run_scheduled(todo, blocks, jobs=args.jobs, expected=expected,
                                 command_for=replicate_command(results),
@@ -519,7 +521,8 @@ def _main(argv=None):
     cache_path.write_text(json.dumps(cache, indent=1, sort_keys=True))
     record = {"total_seconds": time.perf_counter() - start, "experiments": timings,
               "cpu_seconds": cpu, "jobs": args.jobs, "cpu_count": os.cpu_count(),
-              "forced": args.force, "only": sorted(only), "failures": failures}
+              "forced": args.force, "only": sorted(only), "failures": failures,
+              "machine_reference_seconds": reference}
     (results / "regenerate.json").write_text(json.dumps(record, indent=1) + "\n")
     if not only and not failures and "up to date" not in timings.values():
         (results / "regenerate-full.json").write_text(json.dumps(record, indent=1) + "\n")

@@ -6,6 +6,8 @@ import os
 import time
 from pathlib import Path
 
+from replication.machine import reference_seconds
+
 os.environ.setdefault("REPLICATION_PROGRESS", "none")
 
 _START = time.perf_counter()
@@ -24,7 +26,8 @@ def pytest_sessionfinish(session, exitstatus):
     counts = {key: len(reporter.stats.get(key, [])) for key in ("passed", "failed", "skipped",
                                                                  "error")}
     record = {"seconds": time.perf_counter() - _START, "exit_status": int(exitstatus),
-              "collected": session.testscollected, **counts}
+              "collected": session.testscollected, **counts,
+              "machine_reference_seconds": reference_seconds()}  # replication/machine.py
     path = ROOT / "results" / "tests.json"
     path.parent.mkdir(exist_ok=True)
     path.write_text(json.dumps(record, indent=1) + "\n")

@@ -2,6 +2,7 @@
 code took no time, from the baselines study's split of its run time."""
 
 import json
+import time
 
 from replication.experiments.bench.gather import gather_benchmarks
 from replication.report.build import speed_section
@@ -35,3 +36,31 @@ def test_no_bound_without_the_split(tmp_path):
                                 "time_split": "base"}, tmp_path)
     assert "time_split" not in result["sources"]
     assert "inside the cost" not in speed_section(result).markdown
+
+
+def test_machine_reference_is_the_least_disturbed_timing(monkeypatch):
+    from replication import machine
+
+    delays = iter([0.05, 0.02, 0.04])
+    monkeypatch.setattr(machine, "_workload", lambda: time.sleep(next(delays)))
+    assert 0.02 <= machine.reference_seconds(repeats=3) < 0.04
+
+
+def test_speed_summary_shows_the_machine_reference_of_each_run(tmp_path):
+    _write(tmp_path / "regenerate-full.json",
+           {"total_seconds": 500.0, "cpu_count": 2, "experiments": {"x": 500},
+            "cpu_seconds": {"x": 900.0}, "machine_reference_seconds": 0.25})
+    _write(tmp_path / "tests.json", {"seconds": 300.0, "machine_reference_seconds": 0.125})
+    result = gather_benchmarks({"results_dir": str(tmp_path), "goals": {}}, tmp_path)
+    now = result["metrics"]["machine_reference_seconds"]
+    assert 0 < now < 60
+    text = speed_section(result).markdown
+    assert ("took 0.25 s at the start of the last full regeneration, 0.125 s at the end of "
+            "the last full test run") in text
+    # records made before the reference existed: only the gathering's own
+    _write(tmp_path / "regenerate-full.json", {"total_seconds": 500.0})
+    _write(tmp_path / "tests.json", {"seconds": 300.0})
+    text = speed_section(gather_benchmarks({"results_dir": str(tmp_path), "goals": {}},
+                                           tmp_path)).markdown
+    assert "s when these figures were gathered" in text
+    assert "at the start of the last full regeneration" not in text

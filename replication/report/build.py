@@ -176,6 +176,7 @@ def speed_section(result):
     lines += ["", "Figures measured on this project's 2-core machine; the test-suite and "
               "regeneration times come from the last full runs recorded in `results/`."]
     sources = result.get("sources", {})
+    lines += _reference_lines(result["metrics"].get("machine_reference_seconds"), sources)
     lines += _regeneration_lines(sources.get("last_full_regeneration"))
     lines += _bound_lines(sources.get("last_full_regeneration"), sources.get("time_split"))
     return Section("\n".join(lines), rows)
@@ -200,6 +201,23 @@ def _bound_lines(record, split):
             f"shrink to about {cpu[name] * share:.0f} s, and the regeneration would still use "
             f"{rest:.0f} s of CPU: at least {rest / record['cpu_count']:.0f} s on "
             f"{record['cpu_count']} CPUs."]
+
+
+def _reference_lines(now, sources):
+    """The machine's speed at each recorded time: the reference workload's seconds."""
+    if now is None:
+        return []
+    runs = [f"{fmt(record['machine_reference_seconds'])} s {when}"
+            for key, when in (("last_full_regeneration", "at the start of the last full "
+                               "regeneration"),
+                              ("test_suite", "at the end of the last full test run"))
+            if "machine_reference_seconds" in (record := sources.get(key) or {})]
+    return ["", "Machine speed: the reference workload of `replication/machine.py` (a "
+            "Python loop and a numpy sort, best of 5) took " + ", ".join(
+                runs + [f"{fmt(now)} s when these figures were gathered"])
+            + ". The machine is shared and its speed moves between runs with the same "
+            "code and results: to compare a time with another run's, compare each with "
+            "its run's reference."]
 
 
 def _regeneration_lines(record, slowest=6):

@@ -3,8 +3,9 @@
 Gathers the ``metrics`` of the area benchmarks (``bench_*`` experiments, run before it by
 ``replicate-all``), the last full test-suite run (``results/tests.json``, written by the
 test suite itself), the last full regeneration (``results/regenerate-full.json``,
-written when ``replicate-all`` recomputed every result) and how much of the baselines
-study's run time (``time_split``) is spent inside the cost.
+written when ``replicate-all`` recomputed every result), how much of the baselines
+study's run time (``time_split``) is spent inside the cost, and the seconds of the
+reference workload of :mod:`replication.machine` now.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import json
 from pathlib import Path
 
 from replication.errors import check
+from replication.machine import reference_seconds
 from replication.results import read_result
 
 
@@ -46,6 +48,9 @@ def gather_benchmarks(config, out):
             record = json.loads(path.read_text())
             metrics[f"{label}_seconds"] = record.get(key)
             sources[label] = record
+    # the machine's speed now, beside those of the regeneration and test runs (timings of
+    # different runs compare through it)
+    metrics["machine_reference_seconds"] = reference_seconds()
     split = _time_split(results_dir, config.get("time_split"))
     if split is not None:
         sources["time_split"] = split

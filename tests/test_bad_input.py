@@ -44,6 +44,10 @@ def _cloth_files(folder):
     (folder / "truncated.npz").write_bytes(CLOTH_REFERENCE.read_bytes()[:5000])
     (folder / "empty.npz").write_bytes(b"")
     cloth("huge.npz", positions=ref["positions"] * 1e300)
+    cloth("tiny.npz", positions=ref["positions"] * 1e-200)  # squared lengths underflow
+    cloth("dt_huge.npz", dt=np.float64(1e300))
+    cloth("gravity_huge.npz", gravity=np.array([0.0, 0.0, 1e300]))
+    cloth("damping_huge.npz", damping=np.float64(1e300))
     cloth("bool.npz", positions=ref["positions"] > 0)
     cloth("zero.npz", positions=np.zeros_like(ref["positions"]))
     cloth("frozen.npz", positions=np.repeat(ref["positions"][:1], len(ref["positions"]), 0))
@@ -64,6 +68,10 @@ CLOTH_CASES = {
     "truncated.npz": "cannot be read as .npz",
     "empty.npz": "cannot be read as .npz",
     "huge.npz": "coordinates within",
+    "tiny.npz": "found a mesh spanning 1.",
+    "dt_huge.npz": "'dt': found 1e+300; expected a time step between",
+    "gravity_huge.npz": "'gravity': found 1e+300",
+    "damping_huge.npz": "'damping': found 1e+300",
     "bool.npz": "found dtype bool",
     "zero.npz": "at the same place",
     "frozen.npz": "no motion",
@@ -177,7 +185,8 @@ CLOTH_OTHERS = ["bench_cloth", "cloth_identify_18", "cloth_ci", "cloth_baselines
                 "fig09_10", "cloth_identify_noise"]
 CLOTH_MATRIX = ([(e, f) for e in CLOTH_READERS for f in CLOTH_CASES]
                 + [(e, f) for e in CLOTH_OTHERS
-                   for f in ("npy_named_npz.npz", "frozen.npz", "pinned_moves.npz")])
+                   for f in ("npy_named_npz.npz", "frozen.npz", "pinned_moves.npz")]
+                + [("discrepancy", f) for f in ("dt_huge.npz", "tiny.npz")])
 
 
 @pytest.mark.parametrize("experiment, filename", CLOTH_MATRIX)
@@ -208,7 +217,12 @@ def test_bad_sequence_is_refused(bad, tmp_path, capsys, experiment, filename):
 
 MANIFEST_CASES = {
     "truncated": ('{"sequences": ', "cannot be read as JSON"),
-    "list": ("[]", "found no 'sequences' object"),
+    "list": ("[]", "found no 'sequences' key"),
+    "sequences_list": ('{"sequences": ["a"]}', "found 'sequences' of JSON type list"),
+    # role "study" for segment_study, "accuracy" for motion_accuracy
+    "missing_path": ('{"sequences": {"a": {"path": "nowhere", "role": "study"}, '
+                     '"b": {"path": "nowhere", "role": "accuracy"}}}',
+                     ".path: found 'nowhere', no such file or folder"),
     "not_utf8": (b'{"sequences": {"\xff": 1}}', "cannot be read as JSON"),
     "no_path": ('{"sequences": {"a": {"role": "study"}}}', "sequences.a: found"),
 }
@@ -226,6 +240,12 @@ def test_bad_manifest_is_refused(tmp_path, capsys, experiment, case):
                             f"sequences_dir={folder}")
     assert_refused(status, err, message, tmp_path / "work")
     assert sorted(os.listdir(tmp_path)) == ["sequences"]
+
+
+def test_a_sequences_dir_that_is_a_file_is_refused(bad, tmp_path, capsys):
+    status, err = replicate(capsys, *redirected("segment_study", tmp_path / "work"),
+                            f"sequences_dir={bad / 'constant.npz'}")
+    assert_refused(status, err, "constant.npz: a file, not a folder", tmp_path / "work")
 
 
 CONFIG_CASES = [

@@ -120,6 +120,27 @@ def load_npz(path, expected):
 
 # coordinates beyond this (in the data's length unit) overflow the model's arithmetic
 MAX_COORDINATE = 1e9
+# a mesh spanning less than this (in the data's length unit) loses its lengths' digits in
+# their squares (1e-200 squares to 0: "particles at the same place")
+MIN_EXTENT = 1e-9
+# dt, mass, damping and gravity's components beyond this (and dt and masses under its
+# inverse) make the model's arithmetic (dt^2, forces over masses) overflow or lose every
+# digit: the identifier's costs all come out infinite
+MAX_SCALE = 1e9
+
+
+def _within_scale(path, key, values, what, positive=False):
+    """Refuse ``values`` of magnitude over :data:`MAX_SCALE` (and, when ``positive``, under
+    its inverse): the model's arithmetic overflows or loses every digit with them."""
+    values = np.abs(np.asarray(values, dtype=float))
+    largest, smallest = float(values.max()), float(values.min())
+    low = 1.0 / MAX_SCALE if positive else 0.0
+    if largest > MAX_SCALE or (positive and smallest < low):
+        found = largest if largest > MAX_SCALE else smallest
+        bounds = (f"between {low:g} and {MAX_SCALE:g}" if positive
+                  else f"of magnitude at most {MAX_SCALE:g}")
+        _fail(path, key, f"{found:.3g}", f"{what} {bounds} (in the data's units; rescale "
+              "the units otherwise: beyond this the model's arithmetic overflows)")
 
 
 def _check_motion(path, positions, pinned):
@@ -211,6 +232,11 @@ def _validated(raw, path):
     if largest > MAX_COORDINATE:
         _fail(path, "positions", f"a coordinate of magnitude {largest:.3g}",
               f"coordinates within +-{MAX_COORDINATE:g}")
+    extent = float(np.max(np.ptp(positions[0].reshape(-1, 3), axis=0)))
+    if 0 < extent < MIN_EXTENT:
+        _fail(path, "positions", f"a mesh spanning {extent:.3g} in frame 0",
+              f"a mesh spanning at least {MIN_EXTENT:g} in the data's length unit (rescale "
+              "positions and gravity, e.g. to metres or millimetres)")
 
     dt = _real(path, "dt", raw["dt"])
     if dt.shape != ():
@@ -218,6 +244,7 @@ def _validated(raw, path):
     _finite(path, "dt", dt)
     if dt <= 0:
         _fail(path, "dt", f"{float(dt)}", "a time step > 0")
+    _within_scale(path, "dt", dt, "a time step", positive=True)
 
     mass = _real(path, "mass", raw["mass"])
     if mass.shape not in ((), (n, n)):
@@ -225,11 +252,13 @@ def _validated(raw, path):
     _finite(path, "mass", mass)
     if np.any(mass <= 0):
         _fail(path, "mass", f"minimum {float(mass.min())}", "masses > 0")
+    _within_scale(path, "mass", mass, "masses", positive=True)
 
     gravity = _real(path, "gravity", raw["gravity"])
     if gravity.shape != (3,):
         _fail(path, "gravity", f"shape {gravity.shape}", "(3,)")
     _finite(path, "gravity", gravity)
+    _within_scale(path, "gravity", gravity, "components")
 
     pinned = raw["pinned"]
     if pinned.size == 0 and pinned.ndim <= 2 and pinned.shape[-1:] in ((0,), (2,)):
@@ -254,6 +283,7 @@ def _validated(raw, path):
         _finite(path, "damping", value)
         if value < 0:
             _fail(path, "damping", f"{float(value)}", "a damping coefficient >= 0")
+        _within_scale(path, "damping", value, "a damping coefficient")
         damping = float(value)
 
     velocities = None

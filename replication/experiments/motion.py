@@ -18,6 +18,7 @@ from replication.motion import baselines, irc, single
 from replication.motion.derivatives import default_border, sequence_derivatives, too_small
 from replication.motion.io import (
     check_shape,
+    read_listed,
     read_manifest_sequences,
     read_sequence,
     write_sequence_folder,
@@ -385,7 +386,7 @@ def accuracy(config, out):
     workers = int(config.get("workers", 1))
     check(workers >= 1, f"workers={workers}: expected at least 1 process")
     sequences = _accuracy_sequences(config)
-    loaded = {name: read_sequence(item["path"]) for name, item in sequences.items()}
+    loaded = read_listed(sequences, Path(config["sequences_dir"]) / "manifest.json")
     for sequence in loaded.values():
         check(_truth_of(sequence) is not None,
               f"{sequence.source}: truth: missing; expected ground truth for the accuracy table")

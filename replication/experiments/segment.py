@@ -15,6 +15,7 @@ import numpy as np
 from replication.errors import check
 from replication.motion.io import (
     check_shape,
+    read_listed,
     read_manifest_sequences,
     read_sequence,
     write_sequence_folder,
@@ -252,7 +253,7 @@ def study(config, out):
     check(not unknown, f"seeds: unknown method(s) {unknown}; expected some of {known}")
     check(all(n >= 0 for n in seeds.values()), f"seeds: {seeds}; expected counts >= 0")
     sequences = _study_sequences(config)
-    loaded = {name: read_sequence(item["path"]) for name, item in sequences.items()}
+    loaded = read_listed(sequences, Path(config["sequences_dir"]) / "manifest.json")
     for sequence in loaded.values():
         check(sequence.truth is not None and sequence.labels is not None,
               f"{sequence.source}: truth or labels missing; expected both for the study")

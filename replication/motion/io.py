@@ -491,6 +491,9 @@ def read_manifest_sequences(path, maker):
     """
     path = Path(path)
     expected = f"the manifest written by `replicate experiment={maker}`"
+    if path.parent.is_file():
+        raise InputError(f"{path.parent}: a file, not a folder; expected the folder that holds "
+                         f"{expected} (manifest.json)")
     if not path.is_file():
         raise InputError(f"{path}: no such file; expected {expected}")
     try:
@@ -501,7 +504,11 @@ def read_manifest_sequences(path, maker):
             from None
     sequences = manifest.get("sequences") if isinstance(manifest, dict) else None
     if not isinstance(sequences, dict):
-        _fail(path, "sequences", "no 'sequences' object", expected)
+        found = ("no 'sequences' key" if not isinstance(manifest, dict)
+                 or "sequences" not in manifest
+                 else f"'sequences' of JSON type {type(sequences).__name__}")
+        _fail(path, "sequences", found, expected + " ('sequences': an object, name -> "
+              "{'path', 'role'})")
     for name, item in sequences.items():
         if not (isinstance(item, dict) and isinstance(item.get("path"), str)
                 and isinstance(item.get("role"), str)):
@@ -518,6 +525,26 @@ def read_manifest_sequences(path, maker):
                   f"directory, not {beside} beside the manifest (give an absolute path, or "
                   "run from the manifest's folder, to read that one)")
     return sequences
+
+
+def read_listed(sequences, manifest):
+    """Read the sequences chosen from a manifest (:func:`read_manifest_sequences`): ``{name:
+    Sequence}``. A path found neither from the working directory nor beside the manifest
+    is refused naming the manifest and the sequence (sequences not chosen need not exist).
+
+    Parameters
+    ----------
+    sequences : dict
+        ``{name: {"path": str, ...}}``, as :func:`read_manifest_sequences` returns them.
+    manifest : str or Path
+        The ``manifest.json`` they come from, for the message.
+    """
+    for name, item in sequences.items():
+        if not Path(item["path"]).exists():
+            _fail(manifest, f"sequences.{name}.path", f"{item['path']!r}, no such file or "
+                  "folder (neither from the working directory nor beside the manifest)",
+                  "a sequence's frames (docs/data-formats.md)")
+    return {name: read_sequence(item["path"]) for name, item in sequences.items()}
 
 
 def write_sequence_npz(path, frames, *, labels=None, truth=None):

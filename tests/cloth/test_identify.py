@@ -236,3 +236,16 @@ def test_structured_defaults_are_the_config_group():
     group = OmegaConf.to_container(OmegaConf.load(f"{CONFIG_DIR}/structured/default.yaml"))
     assert default_structured() == group and set(group) == {"regression", "tau_scan",
                                                             "refine"}
+
+
+def test_no_finite_cost_at_all_is_a_refusal_not_a_crash():
+    # a model whose arithmetic overflows at every vector: no best point to diagnose
+    from replication.cloth.identify.problem import finite_best
+
+    objective = Objective(lambda X: np.full(len(X), np.inf), np.zeros(2), np.ones(2))
+    objective.evaluate(np.full((3, 2), 0.5))
+    with pytest.raises(InputError, match="every one of the 3 parameter vectors tried gave a "
+                                         "non-finite cost"):
+        finite_best(objective)
+    objective.evaluate(np.full((1, 2), 0.25)[:, :] * 0 + 0.25)
+    assert objective.best_point is None   # still none: inf is never a best

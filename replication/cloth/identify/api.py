@@ -172,7 +172,7 @@ def identify(trajectory, *, model="5", rng=None, budget=None, method="structured
     info = solve(method, objective, trajectory, space, rng=rng, seed=seed, settings=settings)
     info["n_evals"] = objective.n_evals
     info["trace"] = objective.summary()["trace"]
-    best = np.asarray(objective.best_point, float)
+    best = np.asarray(problem.finite_best(objective), float)
     info["diagnostics"] = problem.diagnose(cost_fn, best, space)
     info["warnings"] = problem.diagnostic_warnings(info["diagnostics"], best, space.names)
     return best, float(objective.best_value), info

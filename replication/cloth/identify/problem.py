@@ -191,6 +191,24 @@ def cloth_objective(cost, space, *, budget=None, with_residuals=False):
                      names=space.names)
 
 
+def finite_best(objective):
+    """The best point ``objective`` has seen; an :class:`InputError` when none of its costs
+    was finite (the model's arithmetic overflowed at every parameter vector tried: the
+    data's scales, not the search, are at fault).
+
+    Parameters
+    ----------
+    objective : Objective
+        After at least one evaluation.
+    """
+    if objective.best_point is None:
+        raise InputError(
+            f"every one of the {objective.n_evals} parameter vectors tried gave a non-finite "
+            "cost: the model's step overflows on these data; check the file's dt, gravity, "
+            "mass and damping against its positions' length unit (docs/data-formats.md)")
+    return objective.best_point
+
+
 # what an answer's diagnostics warn about (docs/experiments.md, "Warnings of an answer")
 NOISE_WARN_H = 3e-4   # estimated position noise (units of h) above which answers are biased
 NOISE_STRONG_H = 3e-3  # ... above which K is tens of % off and tau near its own size

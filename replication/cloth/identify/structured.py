@@ -24,6 +24,7 @@ import numpy as np
 
 from replication.cloth import regression
 from replication.cloth.identify.ea import EASettings, PaperEA
+from replication.cloth.identify.problem import finite_best
 from replication.cloth.mesh import FAMILY_OF_TYPE, N_TYPES
 from replication.errors import check
 from replication.optim.objective import BudgetExhausted
@@ -176,7 +177,7 @@ def structured_identify(trajectory, objective, space, *, rng, settings):
             for group in tau_groups(model, space.n_var):
                 scan_tau(objective, x, group, n_grid=scan["n_grid"],
                          refine_evals=scan["refine_evals"])
-                x = objective.best_point.copy()
+                x = finite_best(objective).copy()
         info["scan_vector"] = x.tolist()
         info["evals_after_scan"] = objective.n_evals
         refine = settings["refine"]

@@ -213,7 +213,7 @@ def _reference_lines(now, sources):
                               ("test_suite", "at the end of the last full test run"))
             if "machine_reference_seconds" in (record := sources.get(key) or {})]
     return ["", "Machine speed: the reference workload of `replication/machine.py` (a "
-            "Python loop and a numpy sort, best of 5) took " + ", ".join(
+            "Python loop and a numpy sort, the best of repeated timings) took " + ", ".join(
                 runs + [f"{fmt(now)} s when these figures were gathered"])
             + ". The machine is shared and its speed moves between runs with the same "
             "code and results: to compare a time with another run's, compare each with "

@@ -460,6 +460,8 @@ def _main(argv=None):
             return 2
     cache_path = results / CACHE_FILE
     cache = _read_json_object(cache_path)
+    # the machine's speed now (replication/machine.py), outside the run's timed seconds
+    reference = None if args.dry_run else reference_seconds()
     start = time.perf_counter()
     configs = resolved_configs(list(blocks))
     provenance, keys = experiment_keys(entries, configs)
@@ -495,7 +497,6 @@ def _main(argv=None):
               "(always) and REPORT.md; nothing was run or written (--dry-run)", flush=True)
         return 0
     print(f"{len(todo)} experiment(s) to run, {args.jobs} at a time", flush=True)
-    reference = reference_seconds()   # the machine's speed now (replication/machine.py)
     with mode_for("none" if args.quiet else args.progress):
         outcome = run_scheduled(todo, blocks, jobs=args.jobs, expected=expected,
                                 command_for=replicate_command(results),

@@ -2,7 +2,6 @@
 code took no time, from the baselines study's split of its run time."""
 
 import json
-import time
 
 from replication.experiments.bench.gather import gather_benchmarks
 from replication.report.build import speed_section
@@ -41,9 +40,11 @@ def test_no_bound_without_the_split(tmp_path):
 def test_machine_reference_is_the_least_disturbed_timing(monkeypatch):
     from replication import machine
 
-    delays = iter([0.05, 0.02, 0.04])
-    monkeypatch.setattr(machine, "_workload", lambda: time.sleep(next(delays)))
-    assert 0.02 <= machine.reference_seconds(repeats=3) < 0.04
+    # three timings of 5, 2 and 4 s, read from a clock the test controls
+    clock = iter([0.0, 5.0, 10.0, 12.0, 20.0, 24.0])
+    monkeypatch.setattr(machine, "_workload", lambda: None)
+    monkeypatch.setattr(machine.time, "perf_counter", lambda: next(clock))
+    assert machine.reference_seconds(repeats=3) == 2.0
 
 
 def test_speed_summary_shows_the_machine_reference_of_each_run(tmp_path):

@@ -9,6 +9,7 @@ from __future__ import annotations
 import hashlib
 import math
 import os
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -116,23 +117,79 @@ def optical_flow_rotation(frames, *, method="tvl1", motion_min=0.25, erode=5, tu
     return fit
 
 
+# intensity spans the flow baselines take as they are; others are mapped to 0..1
+UNIT_SPAN = (2.0 ** -8, 4.0)
+UNIT_LIMIT = 1e4      # ... and values of at most this magnitude (float32 holds them)
+_NOTED = set()
+
+
+def unit_intensities(first, second):
+    """The frame pair on the intensity scale scikit-image's flow parameters assume.
+
+    TV-L1's data and smoothness weights and iLK's gradients are tuned for intensities of
+    order 1 (8- and 16-bit frames are read as 0..1), and scikit-image computes in float32:
+    frames read as stored (float or signed integer files: 0..255, 12-bit counts, 1e-90) give
+    other answers, NaN or an overflow. A pair whose values span less than ``UNIT_SPAN[0]``
+    or more than ``UNIT_SPAN[1]``, or reach beyond ``UNIT_LIMIT`` in magnitude, is mapped
+    linearly (one map for both frames) to 0..1; any other pair is returned unchanged.
+
+    Parameters
+    ----------
+    first, second : (H, W) ndarray
+        Finite frames (the readers refuse NaN and inf).
+
+    Returns
+    -------
+    first, second : (H, W) ndarray
+    mapped : tuple of float or None
+        The ``(low, high)`` values mapped to 0 and 1, or None when unchanged.
+    """
+    first, second = np.asarray(first, dtype=float), np.asarray(second, dtype=float)
+    # divide by the largest magnitude first: high - low may overflow near 1e308
+    scale = max(float(np.abs(first).max()), float(np.abs(second).max()))
+    low = min(float(first.min()), float(second.min()))
+    high = max(float(first.max()), float(second.max()))
+    unit = high / scale - low / scale if scale > 0 else 0.0   # the span over scale
+    span = unit * scale                                          # inf beyond 1.8e308
+    if not unit > 0 or (UNIT_SPAN[0] <= span <= UNIT_SPAN[1] and scale <= UNIT_LIMIT):
+        return first, second, None
+    return ((first / scale - low / scale) / unit, (second / scale - low / scale) / unit,
+            (low, high))
+
+
 def flow_field(first, second, *, method="tvl1", options=None, cache_dir=None):
     """scikit-image's optical flow from ``first`` to ``second``, as ``(u, v)`` (along x, y).
 
-    With ``cache_dir``, the field is read from there when it was computed before for the
-    same two images, method, options and scikit-image version (a file named by their
-    SHA-256), and written there otherwise: the same numbers, computed once.
+    The pair is first put on the intensity scale the flow expects
+    (:func:`unit_intensities`; a ``note:`` on stderr, once per range, says when it was
+    mapped). With ``cache_dir``, the field is read from there when it was computed before
+    for the same two images, method, options and scikit-image version (a file named by
+    their SHA-256), and written there otherwise: the same numbers, computed once.
+
+    Parameters
+    ----------
+    first, second : (H, W) ndarray
+    method : {"tvl1", "ilk"}
+    options : dict or None
+        Keyword arguments of the flow function.
+    cache_dir : str or Path, optional
     """
     import skimage
     from skimage.registration import optical_flow_ilk, optical_flow_tvl1
 
     function = {"tvl1": optical_flow_tvl1, "ilk": optical_flow_ilk}[method]
+    first, second, mapped = unit_intensities(first, second)
+    if mapped is not None and mapped not in _NOTED:
+        _NOTED.add(mapped)
+        print(f"note: frame intensities span {mapped[0]:.3g}..{mapped[1]:.3g}; the optical-"
+              "flow baselines (scikit-image, tuned for 0..1) see them mapped to 0..1 "
+              "(docs/data-formats.md, intensities)", file=sys.stderr, flush=True)
     path = None
     if cache_dir is not None:
         first, second = np.ascontiguousarray(first), np.ascontiguousarray(second)
-        digest = hashlib.sha256(repr((method, sorted((options or {}).items()),
-                                      skimage.__version__, first.shape, first.dtype.str,
-                                      second.shape, second.dtype.str)).encode())
+        key = (method, sorted((options or {}).items()), skimage.__version__, first.shape,
+               first.dtype.str, second.shape, second.dtype.str)
+        digest = hashlib.sha256(repr(key if mapped is None else (*key, mapped)).encode())
         digest.update(first.tobytes())
         digest.update(second.tobytes())
         path = Path(cache_dir) / f"{digest.hexdigest()}.npy"

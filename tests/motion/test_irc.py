@@ -212,3 +212,31 @@ def test_rigid_spread_counts_only_tiles_with_weight():
     spread = irc.rigid_spread(a, b, weights, irc.spread_tiles(x, y),
                               irc.rigid_matrix(40.0, 40.0, 0.02), np.array([40.0, 40.0]))
     assert spread["blocks"] == 36
+
+
+def test_flow_baselines_see_frames_on_one_intensity_scale(small_sequence, capsys):
+    """Frames read as stored (float 0..255, 12-bit counts, 1e-90, 1e300) reach
+    scikit-image's flow mapped to 0..1, one map for the pair: the same field at every
+    scale, no float32 overflow, one note per range; frames already on the 0..1 scale
+    (every sequence of the suite) pass unchanged."""
+    import warnings
+
+    frames = small_sequence[0]
+    first, second, mapped = baselines.unit_intensities(frames[0], frames[1])
+    assert mapped is None and np.array_equal(first, frames[0])
+    low, high = frames[:2].min(), frames[:2].max()
+    unit = (frames - low) / (high - low)
+    expected = baselines.flow_field(unit[0], unit[1], method="tvl1")
+    for scale in (255.0, 4095.0, 1e-90, 1e300):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            u, v = baselines.flow_field(frames[0] * scale, frames[1] * scale, method="tvl1")
+        assert np.allclose(u, expected[0], atol=1e-4) and np.allclose(v, expected[1],
+                                                                     atol=1e-4)
+    baselines.flow_field(frames[0] * 255.0, frames[1] * 255.0, method="ilk")
+    notes = [line for line in capsys.readouterr().err.splitlines() if "mapped to 0..1" in line]
+    assert len(notes) == 4 and all(line.startswith("note: frame intensities span")
+                                   for line in notes)
+    # a pair whose span is tiny or whose values are huge, though its span is of order 1
+    assert baselines.unit_intensities(frames[0] * 1e-3, frames[1] * 1e-3)[2] is not None
+    assert baselines.unit_intensities(frames[0] + 1e6, frames[1] + 1e6)[2] is not None

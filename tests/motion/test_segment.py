@@ -406,3 +406,19 @@ def test_moving_blocks_outside_every_object_are_warned():
     assert motion_outside_warnings(still, {"objects": []}, settings) == [
         "no rotating object found, and no part of the frame moves beyond single pixels (a "
         "still scene, or noise only)"]
+
+
+def test_flow_baseline_finds_the_same_objects_at_any_intensity_scale(two_objects):
+    """The flow + RANSAC baseline reads its flow through the one flow engine
+    (``motion.baselines.flow_field``), which maps frames off the 0..1 scale to it: frames
+    as float 0..255 give what the same frames mapped to 0..1 give."""
+    from replication.motion.segment.baselines import flow_ransac_segment
+
+    frames = two_objects[0]
+    low, high = frames[:2].min(), frames[:2].max()
+    found = [flow_ransac_segment(scaled, {}, 5)
+             for scaled in ((frames - low) / (high - low), frames * 255.0)]
+    assert found[0] and len(found[0]) == len(found[1])
+    for a, b in zip(*found):
+        assert abs(a["xi"] - b["xi"]) < 0.05 and abs(a["omega"] - b["omega"]) < 1e-4
+        assert np.array_equal(a["mask"], b["mask"])

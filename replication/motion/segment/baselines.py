@@ -15,7 +15,7 @@ import math
 import numpy as np
 from scipy import ndimage
 
-from replication.motion.baselines import rigid_fit
+from replication.motion.baselines import flow_field, rigid_fit
 from replication.motion.segment import disc_ea
 from replication.optim.objective import Objective
 from replication.optim.pymoo_adapters import BatchedProblem
@@ -163,11 +163,9 @@ def flow_ransac_segment(frames, settings, rng):
         is the moving pixels that follow the model and no earlier one, closed by
         ``closing`` pixels, holes filled; the rotation is refitted on it.
     """
-    from skimage.registration import optical_flow_tvl1
-
     settings = {**FLOW_DEFAULTS, **settings}
     rng = np.random.default_rng(rng)
-    v, u = optical_flow_tvl1(frames[0], frames[1])
+    u, v = flow_field(frames[0], frames[1], method="tvl1")
     moving = np.hypot(u, v) >= settings["motion_min"]
     moving[:4], moving[-4:], moving[:, :4], moving[:, -4:] = False, False, False, False
     rows, cols = np.nonzero(moving)

@@ -86,7 +86,8 @@ def keep_committed(config, out):
         moved = Path(out) / (_MOVED_NAMES[key] if key in OUTPUT_KEYS else Path(value).name)
         kept[key] = str(moved)
         notes.append((moved, f"note: {key}={value} is in the committed {folder}; this run "
-                             f"wrote {moved} instead (force=true writes the committed one)"))
+                             f"wrote {moved} instead (force=true writes the committed "
+                             "one when the run reads the suite's own data)"))
     return kept, notes
 
 if not OmegaConf.has_resolver("or_default"):
@@ -398,8 +399,8 @@ SWEEP_ENVIRONMENT = "REPLICATION_SWEEP"   # set by replicate for the jobs of its
 
 def _sweep():
     """``{"id", "refused"}`` of the sweep this process runs a job of (:func:`main` sets
-    :data:`SWEEP_ENVIRONMENT` for its launchers' workers); ``{}`` outside one, or in a
-    worker that did not inherit the environment (a remote Dask worker)."""
+    :data:`SWEEP_ENVIRONMENT` for its launchers' workers, and the Dask launcher sends it
+    with each job); ``{}`` outside one, or in a worker that did not get it."""
     import json
 
     try:
@@ -429,8 +430,8 @@ def _refuse(message):
     of refusals (:func:`_sweep`), which the submitting ``replicate`` reads when every job
     is back (:func:`_report_refused`): a job that exits would stop the jobs running beside
     it (joblib) or end the sweep in a traceback (submitit). A worker without that folder
-    (a remote Dask worker) exits as a single run does; the Dask launcher returns that as a
-    failed job."""
+    (a launcher that does not pass :data:`SWEEP_ENVIRONMENT` to workers started before the
+    sweep; the suite's Dask launcher passes it) exits as a single run does."""
     if not _in_worker():
         _error(message)
         return

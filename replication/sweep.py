@@ -432,7 +432,8 @@ def check_names(rows, metrics, x):
     metrics : list of str
         Column names asked for (``--metric``).
     x : str or None
-        The override asked for as x axis (``--x``), or ``None`` for the first swept one.
+        The override asked for as x axis (``--x``), or ``None`` for the first by name of
+        those that vary (``seed`` last).
     """
     numeric = numeric_columns(rows)
     for metric in metrics:

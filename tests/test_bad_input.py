@@ -60,6 +60,8 @@ def _cloth_files(folder):
     cloth("nan.npz", positions=nan)
     without = {k: v for k, v in ref.items() if k != "dt"}
     write_npz_deterministic(folder / "no_dt.npz", without)
+    write_npz_deterministic(folder / "no_truth.npz",
+                            {k: v for k, v in ref.items() if k != "meta"})
     os.mkfifo(folder / "fifo.npz")
 
 
@@ -195,6 +197,17 @@ def test_bad_trajectory_is_refused(bad, tmp_path, capsys, experiment, filename):
     status, err = replicate(capsys, *redirected(experiment, work),
                             f"data.path={bad / filename}")
     assert_refused(status, err, CLOTH_CASES[filename], tmp_path)
+
+
+@pytest.mark.parametrize("experiment", ["cloth_ci", "cloth_identify_noise"])
+def test_data_without_truth_is_refused_with_the_file_named(bad, tmp_path, capsys,
+                                                           experiment):
+    """The two experiments that score against ``meta.true_params`` name the file that
+    lacks it (docs/data-formats.md, "Ground truth")."""
+    work = tmp_path / "work"
+    status, err = replicate(capsys, *redirected(experiment, work),
+                            f"data.path={bad / 'no_truth.npz'}")
+    assert_refused(status, err, f"{bad / 'no_truth.npz'}: no meta.true_params", tmp_path)
 
 
 MOTION_READERS = ["motion_single", "segment_multi"]

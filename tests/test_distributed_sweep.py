@@ -182,10 +182,15 @@ def test_dask_sweep_with_a_failing_job_exits_2_and_keeps_the_other_jobs(tmp_path
                    "hydra/launcher=dask", f"hydra.launcher.address={scheduler_file}",
                    f"hydra.sweep.dir={folder}")
     assert done.returncode == 2, done.stderr[-3000:]
-    # workers started before the sweep (as on a real cluster) exit on the refusal, and the
-    # launcher shows the end of the worker's stderr: its error line
-    summary = [line for line in done.stderr.splitlines() if line.startswith("error: ")]
-    assert len(summary) == 1 and "README.md: cannot be read" in summary[0], done.stderr
+    # workers started before the sweep (as on a real cluster) did not inherit the sweep's
+    # REPLICATION_SWEEP: the launcher passes it with each job, so the refused job leaves
+    # its note and the sweep ends with replicate's summary line; the launcher shows the
+    # job's own error line from the worker's stderr
+    errors = [line for line in done.stderr.splitlines() if line.startswith("error: ")]
+    assert len(errors) == 2 and "README.md: cannot be read" in errors[0], done.stderr
+    assert errors[1].startswith("error: 1 job(s) of the sweep refused") and \
+        "README.md: cannot be read" in errors[1] and "resume=true" in errors[1], done.stderr
+    assert "Error executing job" not in done.stderr, done.stderr
     runs = [p.parent.relative_to(folder).as_posix() for p in folder.rglob("result.json")]
     assert runs == ["budget=50,data.path=synthetic_data%2Fcloth%2Freference_tau0.5.npz,"
                     "method=paper_ea"]

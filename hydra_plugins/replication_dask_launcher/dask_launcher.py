@@ -48,12 +48,17 @@ class SweepState:
     runs plugin modules before they are in ``sys.modules``, which dataclasses need)."""
 
     def __init__(self, hydra_context: HydraContext, task_function: TaskFunction,
-                 config: DictConfig, singleton_state: dict, cwd: str) -> None:
+                 config: DictConfig, singleton_state: dict, cwd: str,
+                 environment: Optional[dict] = None) -> None:
         self.hydra_context = hydra_context
         self.task_function = task_function
         self.config = config
         self.singleton_state = singleton_state
         self.cwd = cwd
+        # the sweep's variables for its jobs (replicate's REPLICATION_SWEEP: where a
+        # refused job leaves its note): a worker started before the sweep, by hand or on
+        # another machine, did not inherit them
+        self.environment = dict(environment or {})
 
 
 class TailedStream(io.TextIOBase):
@@ -117,6 +122,8 @@ def run_one_job(state: SweepState, overrides: Sequence[str],
             job.id = f"dask_{job_num}"
             job.num = job_num
         stderr = TailedStream(sys.stderr)
+        saved = {name: os.environ.get(name) for name in state.environment}
+        os.environ.update(state.environment)
         try:
             with contextlib.redirect_stderr(stderr):
                 ret = run_job(hydra_context=state.hydra_context,
@@ -125,6 +132,12 @@ def run_one_job(state: SweepState, overrides: Sequence[str],
         except SystemExit as exit_:
             status = JobStatus.COMPLETED if exit_.code in (0, None) else JobStatus.FAILED
             ret = JobReturn(overrides=list(overrides), status=status, _return_value=exit_)
+        finally:
+            for name, value in saved.items():   # the worker's own, for its next sweep
+                if value is None:
+                    os.environ.pop(name, None)
+                else:
+                    os.environ[name] = value
         return ret, stderr.tail
 
 
@@ -228,9 +241,13 @@ class DaskLauncher(Launcher):
         setup_globals()
         configure_log(self.config.hydra.hydra_logging, self.config.hydra.verbose)
         Path(str(self.config.hydra.sweep.dir)).mkdir(parents=True, exist_ok=True)
+        from replication.cli import SWEEP_ENVIRONMENT
+
+        environment = ({SWEEP_ENVIRONMENT: os.environ[SWEEP_ENVIRONMENT]}
+                       if SWEEP_ENVIRONMENT in os.environ else {})
         state = SweepState(hydra_context=self.hydra_context, task_function=self.task_function,
                            config=self.config, singleton_state=Singleton.get_state(),
-                           cwd=os.getcwd())
+                           cwd=os.getcwd(), environment=environment)
         from concurrent.futures import CancelledError
 
         from distributed import as_completed
@@ -274,5 +291,11 @@ class DaskLauncher(Launcher):
                 if cluster is None:  # a remote worker's stderr: show why the job stopped
                     lines = tail.rstrip("\n").splitlines()[-10:]
                     print("\n".join(lines), file=sys.stderr, flush=True)
+            elif cluster is None:
+                # a job refused on a remote worker left its note for replicate's summary
+                # line; its own error: line went to that worker's stderr: show it here
+                refused = [line for line in tail.splitlines() if line.startswith("error: ")]
+                if refused:
+                    print(refused[-1], file=sys.stderr, flush=True)
         return [ret for ret, _ in done]
 

@@ -223,10 +223,11 @@ def noise_study(config, out):
         output folder.
     """
     check_common(config)
-    label, _, clean = _single_trajectory(config)
+    label, path, clean = _single_trajectory(config)
     model = str(config["model"])
     truth = problem.truth_vector(clean, model)
-    check(truth is not None, "cloth_identify_noise needs data with meta.true_params")
+    check(truth is not None, f"{path}: no meta.true_params; cloth_identify_noise needs data "
+                             "with known parameters")
     levels = [float(v) for v in config["noise_levels"]]
     check(all(v >= 0 for v in levels), f"noise_levels={levels}: expected values >= 0")
     methods = list(config["methods"])

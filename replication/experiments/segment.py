@@ -258,9 +258,10 @@ def study(config, out):
         check(sequence.truth is not None and sequence.labels is not None,
               f"{sequence.source}: truth or labels missing; expected both for the study")
     rows = []
+    # a method with 0 seeds is not run (nor reported as finding nothing)
     plan = [(index, name, method, count) for index, name in enumerate(loaded)
             for method, count in seeds.items()
-            if not (sequences[name]["role"] == "heldout" and method in ablations)]
+            if count > 0 and not (sequences[name]["role"] == "heldout" and method in ablations)]
     with bar(sum(count for *_, count in plan), "segmentation runs") as shown:
         for index, name, method, count in plan:
             sequence, role = loaded[name], sequences[name]["role"]

@@ -191,7 +191,8 @@ def test_committed_multi_object_data_is_regenerated_identically(tmp_path):
                                    tmp_path)
 
 
-def test_study_runs_on_one_sequence_with_tiny_settings(tmp_path):
+def test_study_runs_on_one_sequence_with_tiny_settings(tmp_path, monkeypatch):
+    monkeypatch.setenv("REPLICATION_PROGRESS", "plain")
     done = run_cli("experiment=segment_study", f"out={tmp_path / 'out'}", "max_sequences=1",
                    "seeds={pipeline: 1, faithful: 0, refined: 0, nichega: 0, flow: 1, "
                    "no_fresh_projection: 0, inflate_only: 0, one_round: 0, no_extra_seeds: 1, "
@@ -202,6 +203,10 @@ def test_study_runs_on_one_sequence_with_tiny_settings(tmp_path):
     result = json.loads((tmp_path / "out" / "result.json").read_text())
     assert {s["method"] for s in result["summary"]} == {"pipeline", "flow", "no_extra_seeds"}
     assert {r["role"] for r in result["rows"]} == {"study", "static"}
+    # progress lines only for the methods that ran (0 seeds: not "found 0.00 of objects")
+    lines = [line for line in done.stderr.splitlines() if " of objects," in line]
+    assert lines and all(line.split(":")[0].split()[-1] in
+                         {"pipeline", "flow", "no_extra_seeds"} for line in lines), lines
     for row in result["rows"]:
         for item in row["per_object"]:
             assert 0.0 <= item["iou"] <= 1.0

@@ -240,9 +240,10 @@ def blind_section(result):
         f"{_pct(s['outside_effect_reported_unexplained'])} |",
         f"| median gap shrink (held-out rollout, correct names) | >= 5x | "
         f"{fmt(s['gap_shrink_median'], 3)}x |",
-        f"| median coefficient error (correct names) | <= 10% | "
+        f"| median coefficient error (correct names) | | "
         f"{_pct(s['coefficient_error_median'])} |",
-        f"| coefficients within 10% | | {_pct(s['coefficient_within_10pct'])} |",
+        f"| coefficients within 10% (the issue's goal: every one) | 100% | "
+        f"{_pct(s['coefficient_within_10pct'])} |",
         *([f"| truth within 2 standard errors of every fitted coefficient | | "
            f"{_pct(s['coefficient_within_2se'])} (largest error "
            f"{fmt(s['coefficient_z_max'], 3)} standard errors) |",
@@ -368,6 +369,14 @@ def calibration_section(result):
         f"{_pct(s['rate_any_significant'])}; false names: {_pct(s['false_name_rate'])}; "
         f"false 'unexplained': {_pct(s['false_unexplained_rate'])}.",
     ]
+    if (s["rate_any_significant"] or 0) > 0.05:
+        lines += ["", "Were the Wald statistics exact, at most about 5% of these datasets "
+                  "would have a candidate above its threshold; here "
+                  f"{_pct(s['rate_any_significant'])} do (median "
+                  f"{fmt(s['wald_ratio_quantiles']['0.5'], 3)} x the threshold): on effect-free "
+                  "data the Wald test alone is far from calibrated, and the false-name rate "
+                  "rests on the workflow's other checks before a name is kept (information "
+                  "criterion, held-out rollout, the structure it removes), not on it."]
     ok = s["false_name_rate"] <= 0.05
     rows = [SummaryRow("false names, calibration set (in-house generator)", "not in paper",
                        _goal(_pct(s["false_name_rate"]), ok), "<= 5%", BEYOND)]

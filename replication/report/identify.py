@@ -50,12 +50,14 @@ def tables_section(result):
     cfg = result["config"]
     ea = cfg["ea"]
     lines = [
-        f"The paper's EA exactly as section 3.3 describes it: population {ea['pop_size']}, "
+        f"The paper's EA as section 3.3 describes it: population {ea['pop_size']}, "
         f"{ea['generations']} generations, the best {fmt(100 * ea['keep'])}% kept, "
         f"{fmt(100 * ea['mutation'])}% mutants of the best {fmt(100 * ea['mutate_from'])}%, "
         f"{fmt(100 * ea['crossover'])}% uniform crossover with as many parents as parameters "
         f"from the best {fmt(100 * ea['crossover_from'])}%, rest lengths initialised within "
-        f"+-{fmt(100 * cfg['init']['rest_spread'])}% of the mean observed lengths. The paper "
+        f"+-{fmt(100 * cfg['init']['rest_spread'])}% of the mean observed lengths (the "
+        "paper: \"around the average length values observed\"; the spread is not given). "
+        "The paper "
         "does not give the mutation size: here one randomly chosen parameter gets Gaussian "
         f"noise of {fmt(ea['mutation_scale'])} x its bound width. Cost: the paper's "
         f"**{cfg['cost']['kind']}** cost (frame {cfg['cost'].get('frame')}); bounds "
@@ -303,11 +305,19 @@ def identify_section(result):
         untouched = [name for name, err in errors.items() if abs(err) > tol]
         if untouched:
             lines.append(f"Outside {fmt(100 * tol)}%: {', '.join(untouched)}.")
+    undetermined = (result.get("diagnostics") or {}).get("undetermined") or []
+    if result.get("warnings"):
+        lines += ["", "Warnings of this answer (`warnings` in the result):", ""]
+        lines += [f"- {warning}" for warning in result["warnings"]]
+    if errors:
+        caveat = (f"; not determined by the data: {', '.join(undetermined)} (within "
+                  "tolerance, but the data do not tell it: see the warnings)"
+                  if undetermined else "")
         rows.append(SummaryRow(
             f"{result['model']}-parameter identification of `{result['data']}` "
             "(beyond the paper)", "n/a",
             f"largest error {worst} {_pct(errors[worst])} after {result['n_evals']} "
-            "evaluations", f"all within {fmt(100 * tol)}%",
+            f"evaluations{caveat}", f"all within {fmt(100 * tol)}%",
             "beyond the paper" if result.get("success") else "not met"))
     return Section("\n".join(lines), rows)
 

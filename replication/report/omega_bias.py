@@ -87,7 +87,8 @@ def _verdict_row(result):
     bias = single_run["errors"]["paper"]["omega_pct"]
     link = anchor(result["config"]["report"]["title"])
     verdict = ("replicated" if abs(bias) <= 3 else
-               f"partly: {_explanation(result)} ([why]({link}))")
+               f"not replicated within 3 % ({fmt(abs(bias), 2)} % off), explained: "
+               f"{_explanation(result)} ([why]({link}))")
     return SummaryRow("best peak gives omega (2.2, Fig. 2)", f"{PAPER_OMEGA}",
                       f"{fmt(single_run['irc']['omega'], 4)} (truth "
                       f"{fmt(single_run['truth']['omega'])}, {fmt(bias, 3)} %)",

@@ -156,6 +156,28 @@ def _beyond_paragraph(result):
             "data, then a tau scan) is what succeeds on this problem (summary table).")
 
 
+# the extremes of K in the paper's own Table 1 listing (given numbers; reference K = 4)
+PAPER_TABLE1_K = {"candidate 26": 3.906064, "candidate 88": 4.084211}
+PAPER_K = 4.0
+
+
+def _bar_paragraph(result):
+    """How the 2% bar compares with the spread of the paper's own Table 1 listing."""
+    spread = {name: k / PAPER_K - 1.0 for name, k in PAPER_TABLE1_K.items()}
+    widest = max(abs(v) for v in spread.values())
+    table = result["table1_2"]["table_reference"]
+    between = sorted(r["name"] for r in result["rows"]
+                     if not r["beyond"] and table in r
+                     and TABLE1_RTOL < r[table]["good_max_abs_error"] <= widest)
+    return (f"The {fmt(100 * TABLE1_RTOL)}% bar is a little stricter than the paper's own "
+            "listing, whose five individuals reach "
+            + ", ".join(f"{_pct(v)} in K ({name})" for name, v in spread.items())
+            + f". At the paper's own spread ({fmt(100 * widest, 3)}%) the lowest-cost run on "
+            f"`{table}` would also pass under "
+            + (", ".join(f"`{name}`" for name in between) if between else "no other reading")
+            + "; the suite's `table1_2` run stays far outside it.")
+
+
 def _table1_reason(result):
     """Why Table 1 fails, measured: the closest lowest-cost run over the readings."""
     table = result["table1_2"]["table_reference"]
@@ -238,7 +260,10 @@ def sensitivity_section(result):
         "0.001 s or 0.004 s, so frame 150 is another time of the fall).",
         "",
         f"**Verdict** ({result['n_paper_readings']} readings of the paper, "
-        f"{result['n_seed_runs']} EA runs in all): {verdict_paragraph(result)}",
+        f"{result['n_seed_runs']} EA runs in all, the repeats of the unchanged reading "
+        f"included): {verdict_paragraph(result)}",
+        "",
+        _bar_paragraph(result),
         "",
         _beyond_paragraph(result),
         "",

@@ -56,3 +56,24 @@ def test_smoke_limits_and_bad_axes(tmp_path):
         run_study({"sensitivity": {"axes": []}}, tmp_path, _runner([]), _score)
     with pytest.raises(InputError, match="is not a group"):
         set_dotted({"c": 0.5}, "c.d", 1)
+
+
+def test_table1_bar_paragraph_names_readings_within_the_papers_own_spread():
+    """The paragraph is computed: a reading between the 2% bar and the paper's own K spread
+    (2.35%) is named, one beyond it and one within 2% are not, and table1_2's own run is
+    placed against the spread from its errors."""
+    from replication.report.table1_sensitivity import _bar_paragraph
+
+    def row(name, worst, beyond=False):
+        return {"name": name, "beyond": beyond, "tau0.5": {"good_max_abs_error": worst}}
+
+    result = {"table1_2": {"table_reference": "tau0.5",
+                           "good_relative_errors": {"K": 0.022, "tau": 0.001}},
+              "rows": [row("inside_bar", 0.01), row("between", 0.022),
+                       row("beyond_spread", 0.03), row("restarts", 0.022, beyond=True)]}
+    text = _bar_paragraph(result)
+    assert "would also pass under `between`;" in text
+    assert "inside_bar" not in text and "beyond_spread" not in text and "restarts" not in text
+    assert "2.2% off, is within it" in text
+    result["table1_2"]["good_relative_errors"] = {"K": -0.164}
+    assert "16.4% off, is outside it" in _bar_paragraph(result)

@@ -118,7 +118,6 @@ def segment_section(result):
     candidates = [r for r in result["readings"] if not result["axes"][r["axis"]]["beyond"]]
     best_rate = max(r["rate"] for r in candidates)
     tied = [r for r in candidates if r["rate"] == best_rate]
-    best = tied[0]
     link = anchor(result["config"]["report"]["title"])
     lines = [
         "`segment_study`'s `faithful` method is section 2.3 as the paper describes it (EA "
@@ -150,7 +149,7 @@ def segment_section(result):
         verdict_text = f"replicated under {len(meeting)} of {total} readings"
     else:
         text = (f"finds {base['rate']:.0%} of object-runs as configured and at most "
-                f"{best['rate']:.0%} ("
+                f"{best_rate:.0%} ("
                 + ("; ".join(_reading(r) or "the defaults" for r in tied))
                 + f") under any of {total} readings; goal {goal:.0%}")
         verdict_text = (f"not replicated: objects found, but under none of {total} readings "

@@ -89,6 +89,14 @@ class TailedStream(io.TextIOBase):
 CONNECT_SECONDS = 10   # how long to wait for a remote scheduler
 
 
+def quiet_distributed_logs() -> None:
+    """Keep ``distributed``'s own loggers to critical messages in this process. Run on each
+    worker of the launcher's local cluster once its jobs are gathered: a worker's heartbeat
+    in flight while the scheduler closes logs a ``CommClosedError`` traceback ("Failed to
+    communicate with scheduler during heartbeat"), a race of the shutdown, not news."""
+    logging.getLogger("distributed").setLevel(logging.CRITICAL)
+
+
 def _refuse(message):
     """One ``error:`` line and exit status 2, as ``replication.cli._error`` writes (not
     called here: Hydra imports this module at start-up, before the suite's own)."""
@@ -139,6 +147,33 @@ def run_one_job(state: SweepState, overrides: Sequence[str],
                 else:
                     os.environ[name] = value
         return ret, stderr.tail
+
+
+def close_quietly(client, cluster, reach_workers: bool = True) -> None:
+    """Close ``client`` and, when the launcher started it, the local ``cluster``, without
+    the shutdown's own log noise. Workers of a user's cluster are left as they are.
+
+    Parameters
+    ----------
+    client, cluster
+        What :meth:`DaskLauncher.connect` returned (``cluster`` is ``None`` for a user's).
+    reach_workers
+        Quiet the local workers' loggers first (a call to each worker); ``False`` after
+        Ctrl-C, when the workers may already be going."""
+    if cluster is None:
+        client.close()
+        return
+    if reach_workers:
+        with contextlib.suppress(Exception):  # a cluster already failing closes as it can
+            client.run(quiet_distributed_logs)
+    parent = logging.getLogger("distributed")
+    level = parent.level
+    parent.setLevel(logging.CRITICAL)  # the nannies and scheduler here, while they close
+    try:
+        client.close()
+        cluster.close()
+    finally:
+        parent.setLevel(level)
 
 
 class DaskLauncher(Launcher):
@@ -256,6 +291,7 @@ class DaskLauncher(Launcher):
         from replication.progress import bar, mode_for
 
         client, cluster = self.connect()
+        interrupted = False
         try:
             print(f"dask launcher: {len(job_overrides)} jobs on {client.scheduler.address}",
                   file=sys.stderr, flush=True)
@@ -279,11 +315,10 @@ class DaskLauncher(Launcher):
             # Ctrl-C: the local cluster's nannies log their workers' shutdown (warnings and
             # a CancelledError traceback) while it closes; the interruption is the news
             logging.getLogger("distributed").setLevel(logging.CRITICAL)
+            interrupted = True
             raise
         finally:
-            client.close()
-            if cluster is not None:
-                cluster.close()
+            close_quietly(client, cluster, reach_workers=not interrupted)
         for ret, tail in done:
             if ret.status == JobStatus.FAILED and isinstance(ret._return_value, SystemExit):
                 # Dask's transport keeps an exception's args but not SystemExit.code

@@ -264,8 +264,10 @@ class DaskLauncher(Launcher):
         if self.address:
             return self._connect_remote(), None
         options = {} if self.memory_limit is None else {"memory_limit": self.memory_limit}
+        # the scheduler's HTTP server on a free port: its default, 8787, is taken when
+        # another cluster runs here (Dask then warns "Port 8787 is already in use")
         cluster = LocalCluster(n_workers=self.n_workers, threads_per_worker=1,
-                               processes=True, host="127.0.0.1", dashboard_address=None,
+                               processes=True, host="127.0.0.1", dashboard_address=":0",
                                **options)
         return Client(cluster), cluster
 

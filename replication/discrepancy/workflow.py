@@ -28,7 +28,7 @@ from scipy.stats import chi2
 
 from replication.cloth import regression
 from replication.cloth.identify.problem import (meaningless_noise_warning, motion_and_noise,
-                                                still_cloth_warning)
+                                                repeated_frames_warning, still_cloth_warning)
 from replication.discrepancy import effects as fx
 from replication.discrepancy.gap import (
     STARTS,
@@ -41,6 +41,7 @@ from replication.discrepancy.gap import (
 from replication.discrepancy.naming import score_candidates
 from replication.discrepancy.residuals import SIGMA_FLOOR_H, residuals, structure, where
 from replication.errors import InputError
+from replication.sequences import repeated_frames
 
 DEFAULTS = {
     "model": "5", "holdout_block": 25, "holdout_every": 4, "window": 10, "patch": 4,
@@ -539,6 +540,9 @@ def _warnings(data, base_fit, located, named_effects, gap_before, gap_after, lim
     held-out gap little, an anisotropic stiffness without anisotropy, a body force that
     looks like a unit or time-step mistake."""
     warnings = []
+    repeated = repeated_frames_warning(repeated_frames(data.trajectory.positions))
+    if repeated is not None:
+        warnings.append(repeated)
     motion_h, data_noise_h = motion_and_noise(data)
     still = still_cloth_warning(motion_h, min(data_noise_h, located.get("noise_sigma_h",
                                                                          data_noise_h)))

@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from replication.motion.derivatives import gradient_threshold, pair_derivatives, smooth
+from replication.sequences import repeated_frames
 
 # the checks measure on the pixels whose |grad I| is at least this share of its 99th
 # percentile (motion_single's own relative_threshold, so the noise check reads the voting
@@ -180,13 +181,31 @@ def frame_checks(frames, *, sigma=1.5):
     -------
     dict
         ``measures``: the worst pair's measures (:func:`frame_statistics`) with the
-        ``thresholds`` they are held to; ``warnings``: :func:`frame_warnings` of them.
+        ``thresholds`` they are held to, and ``repeated_frames``
+        (:func:`replication.sequences.repeated_frames`); ``warnings``: the repeats'
+        (:func:`repeated_frames_warning`), then :func:`frame_warnings` of the measures.
     """
     worst = frame_statistics(frames, sigma=sigma)["worst"]
     thresholds = {"brightness_pct": BRIGHTNESS_PCT, "brightness_share": BRIGHTNESS_SHARE,
                   "scale_pct": DIVERGENCE_PCT, "scale_share": DIVERGENCE_SHARE,
                   "noise_flow": NOISE_FLOW}
-    return {"measures": {**worst, "thresholds": thresholds}, "warnings": frame_warnings(worst)}
+    repeated = repeated_frames(frames)
+    warnings = ([repeated_frames_warning(repeated)] if repeated else []) \
+        + frame_warnings(worst)
+    return {"measures": {**worst, "thresholds": thresholds, "repeated_frames": repeated},
+            "warnings": warnings}
+
+
+def repeated_frames_warning(frames):
+    """The warning for frames that repeat the frame before while the scene moves after
+    them (:func:`replication.sequences.repeated_frames`): the IRC equation reads the
+    frames as equally spaced in time, so a repeated pair votes for no motion at all."""
+    shown = ", ".join(str(f) for f in frames[:8]) + (", ..." if len(frames) > 8 else "")
+    return (f"{len(frames)} frame(s) ({shown}) repeat the frame before to the last bit "
+            "while the scene moves after them: a capture that dropped or repeated frames, or "
+            "frames from before the motion began? The method takes the frames as equally "
+            "spaced in time, so a repeated pair shows no motion and omega comes out low, "
+            "the centres pulled (leave the repeats out, or restore the missing frames)")
 
 
 def frame_warnings(worst):

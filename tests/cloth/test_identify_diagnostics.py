@@ -11,6 +11,7 @@ import pytest
 from replication.cloth.identify import identify, problem
 from replication.cloth.io import read_trajectory
 from replication.errors import InputError
+from replication.sequences import repeated_frames
 from tests.cloth.plain_reference import plain_run
 
 N, SIDE, STEPS, FRAME = 7, 0.6, 60, 40
@@ -221,3 +222,37 @@ def test_a_moving_cloth_is_not_warned_as_still_even_under_noise(runs):
     found, warnings = _diagnose(_write(runs["folder"] / "moving.npz", noisy), 4.0, 0.01)
     assert found["motion_h"] > 20 * found["position_noise_h"]
     assert not any(w.startswith("the free particles move") for w in warnings)
+
+
+@pytest.mark.parametrize("still_steps, expected", [
+    ([], []),                      # a moving cloth
+    ([20], [21]),                  # one frame repeated
+    ([20, 21, 22], [21, 22, 23]),  # a stall of three frames
+    ([5, 30], [6, 31]),
+    ([0, 1, 2], [1, 2, 3]),        # held still, then released: no freely moving cloth
+])
+def test_repeated_frames_are_those_that_stop_the_motion_and_let_it_resume(runs, still_steps,
+                                                                          expected):
+    frames = runs[0.01].copy()
+    for step in still_steps:                 # frame step + 1 repeats frame step
+        frames[step + 1:] = np.concatenate([frames[step:step + 1], frames[step + 1:-1]])
+    assert repeated_frames(frames) == expected
+    frames[-3:] = frames[-4]                 # and comes to rest at the end: no repeat more
+    assert repeated_frames(frames) == expected
+    assert repeated_frames(np.repeat(frames[:1], 5, axis=0)) == []   # nothing moves
+
+
+def test_repeated_frames_are_named_before_the_misfit_they_cause(runs):
+    """An outside user's capture with repeated frames (each a copy of the frame before, as
+    a capture that drops a frame writes it) got a misfit warning sending them to the
+    discrepancy workflow, which found nothing: the cause was not named. It is now, first,
+    wherever the repeats are (here outside the cost's frames)."""
+    frames = runs[0.01].copy()
+    frames[30] = frames[29]
+    frames[45:47] = frames[44]
+    found, warnings = _diagnose(_write(runs["folder"] / "repeated.npz", frames), 4.0, 0.01)
+    assert found["repeated_frames"] == [30, 45, 46]
+    assert warnings[0].startswith("3 frame(s) (30, 45, 46) repeat the frame before"), warnings
+    clean, warnings = _diagnose(_write(runs["folder"] / "clean.npz", runs[0.01]), 4.0, 0.01)
+    assert clean["repeated_frames"] == [] and not any("repeat the frame" in w
+                                                      for w in warnings)

@@ -189,3 +189,15 @@ def test_structure_a_force_of_exact_form_leaves_is_unexplained_whatever_its_shar
     if unexplained:
         assert result["unexplained"]["remaining_fraction"] < 0.01
         assert result["unexplained"]["Q"] > 1e3
+
+
+def test_repeated_frames_are_warned_by_the_check_cloth_identify_uses(tmp_path):
+    """An outside user's noise-free capture with a repeated frame got 'nothing named' and
+    position noise of 8e-4 h that the data do not carry, and no word of the cause."""
+    made = og.make({"n_frames": 120, "K": 4.0, "tau": 0.3, "noise_h": 0.0, "seed": 5,
+                    "effects": []})
+    made["positions"][60] = made["positions"][59]
+    path = tmp_path / "repeated.npz"
+    og.write_npz(path, made)
+    result = analyse(read_trajectory(path), {"n_subsamples": 10}, rng=0)
+    assert result["warnings"][0].startswith("1 frame(s) (60) repeat the frame before")

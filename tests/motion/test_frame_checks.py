@@ -87,6 +87,23 @@ def test_noise_dominates_at_12_but_not_at_2_per_255():
     assert _kinds(warned) == ["noise"] and "px/frame" in warned[0]
 
 
+def test_a_repeated_frame_is_warned_first_and_a_moving_sequence_is_not():
+    """An outside user's 4 frames with one repeated (a dropped frame written twice): the
+    refined centre moved 0.8 px and omega 2.4 % low (from 0.02 px, 0.03 %), without a
+    word. Also frames before the motion began; not a scene at rest at its end."""
+    frames = _disc_sequence()
+    assert frame_checks(frames)["measures"]["repeated_frames"] == []
+    for repeated, expected in ((frames[[0, 1, 1, 2]], [2]), (frames[[0, 0, 1, 2]], [1]),
+                               (frames[[0, 1, 2, 2]], [])):
+        checks = frame_checks(repeated)
+        assert checks["measures"]["repeated_frames"] == expected
+        named = [w for w in checks["warnings"] if "repeat the frame before" in w]
+        assert len(named) == (1 if expected else 0), checks["warnings"]
+        if expected:   # first, and naming the frame
+            assert checks["warnings"][0] == named[0]
+            assert named[0].startswith(f"1 frame(s) ({expected[0]}) repeat")
+
+
 def test_both_runners_add_the_frame_warnings(tmp_path):
     """motion_single and segment_multi call the same check: a flickering sequence is warned
     by both (figures off; the segmentation shrunk to a few generations)."""

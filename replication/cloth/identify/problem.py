@@ -24,6 +24,7 @@ from replication.cloth.noise import (
     robust_residual_sigma,
 )
 from replication.errors import InputError, check
+from replication.sequences import repeated_frames
 from replication.optim.objective import Objective
 
 MODELS = ("5", "18")
@@ -325,7 +326,8 @@ def _residual_fit(cost, best):
     return sigma, {"noise_h": sigma / data.h, "misfit": excess_power(r, data.free, sigma),
                    "data_noise_h": data_h, "robust_misfit": robust,
                    "residual_frames": [int(frames[0]), int(frames[-1])],
-                   "motion_h": motion_h, "position_noise_h": noise_h}
+                   "motion_h": motion_h, "position_noise_h": noise_h,
+                   "repeated_frames": repeated_frames(positions)}
 
 
 def meaningless_noise_warning(noise_h):
@@ -379,6 +381,23 @@ def still_cloth_warning(motion_h, noise_h):
             "(a cloth at rest, or noise only); the answer means nothing")
 
 
+def repeated_frames_warning(frames):
+    """The warning that frames repeat the frame before while the cloth moves after them
+    (:func:`replication.sequences.repeated_frames`), or None. One check for every workflow
+    that fits the cloth model: the model steps ``dt`` from each frame to the next, so a
+    repeat reads as a still step and a double one (a misfit, noise, or an effect that is
+    not there)."""
+    if not frames:
+        return None
+    shown = ", ".join(str(f) for f in frames[:8]) + (", ..." if len(frames) > 8 else "")
+    return (f"{len(frames)} frame(s) ({shown}) repeat the frame before to the last bit "
+            "while the cloth moves after them: a capture that dropped or repeated frames, "
+            "or frames from before the motion began? The model steps dt from each frame to "
+            "the next, so each repeat reads as a misfit, as noise or as an effect that is "
+            "not there; cut the trajectory at them (or restore the missing frames) before "
+            "reading the answer")
+
+
 def diagnostic_warnings(diagnostics, best, names):
     """One line per finding of :func:`diagnose` a user should act on."""
     best = dict(zip(names, np.asarray(best, dtype=float)))
@@ -410,6 +429,9 @@ def diagnostic_warnings(diagnostics, best, names):
             f"without a model ({diagnostics['data_noise_h']:.2g} h): the answer is off "
             "(approximate, or a local optimum), the model lacks an effect, or the noise "
             "is far from even across particles")
+    repeated = repeated_frames_warning(diagnostics.get("repeated_frames"))
+    if repeated is not None:   # first: it explains the lines that follow
+        warnings.insert(0, repeated)
     still = (still_cloth_warning(diagnostics["motion_h"],
                                  min(diagnostics["position_noise_h"], diagnostics["noise_h"]))
              if "motion_h" in diagnostics else None)

@@ -1,0 +1,32 @@
+"""Checks of a recorded sequence that hold whatever it records (a cloth's positions, image
+frames): one engine for every workflow that reads frames as equally spaced in time."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def repeated_frames(frames):
+    """Frames identical to the frame before, every value to the last bit, with motion after
+    them: a capture that dropped or repeated frames, or frames recorded before the motion
+    began. Recorded motion, noise included, never stops for a whole frame and resumes; a
+    sequence that comes to rest at its end (a damped cloth settling to the last bit) has no
+    such frame, nor one where nothing moves at all (the still checks of each workflow).
+
+    Parameters
+    ----------
+    frames : (T, ...) array_like
+        The sequence, frame first.
+
+    Returns
+    -------
+    list of int
+        The repeating frames, in order (empty when there are none).
+    """
+    x = np.asarray(frames)
+    x = x.reshape(len(x), -1)
+    still = np.all(x[1:] == x[:-1], axis=1)   # still[t]: frame t + 1 repeats frame t
+    moving = np.flatnonzero(~still)
+    if moving.size == 0:
+        return []
+    return [int(t) + 1 for t in np.flatnonzero(still[:moving[-1]])]

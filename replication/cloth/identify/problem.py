@@ -24,8 +24,8 @@ from replication.cloth.noise import (
     robust_residual_sigma,
 )
 from replication.errors import InputError, check
-from replication.sequences import repeated_frames
 from replication.optim.objective import Objective
+from replication.sequences import repeated_frames
 
 MODELS = ("5", "18")
 

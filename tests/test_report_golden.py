@@ -32,3 +32,21 @@ def test_the_discrepancy_example_section_lists_vectors_and_leaves_matrices_out()
     row = next(line for line in text.splitlines() if line.startswith("| with effect"))
     assert "direction = (0, 1)" in row
     assert "covariance" not in row and "relative_mass" not in row
+
+
+def test_the_fig11_paragraph_quotes_the_configured_costs_and_needs_two_sets():
+    """The paragraph on the paper's error levels quotes the costs of the sets the run
+    re-simulated (a user's own sets included), not numbers typed into the report."""
+    from replication.report.cloth import reconstruction_section
+
+    def row(label, cost, rms):
+        return {"label": label, "paper_cost": cost, "small": 1.0, "full": 1.0,
+                "rms_error_h": rms, "final_error_h": rms}
+
+    result = {"data": "d.npz", "figures": ["f.png", "f.gif"],
+              "config": {"visible_error_h": 0.5},
+              "reconstructions": [row("mine", 0.25, 0.1), row("other", 0.75, 2.0)]}
+    text = reconstruction_section(result).markdown
+    assert "(cost 0.25)" in text and "(cost 0.75)" in text
+    result["reconstructions"] = result["reconstructions"][:1]
+    assert "The paper puts the two" not in reconstruction_section(result).markdown

@@ -377,6 +377,11 @@ def _why_stale(name, results, provenance, stale, by_themselves, blocks, force):
         return " and ".join(changed) + " changed"
     if had != provenance[name]:
         return "its provenance record differs (an older result)"
+    # current by its own provenance: the cache key, which holds its dependencies' keys, differs
+    again = [d for d in blocks[name].get("depends_on", []) if d in stale]
+    if again:
+        return (f"depends on {', '.join(again)}, which "
+                f"{'runs' if len(again) == 1 else 'run'} again")
     return "an experiment it depends on was recomputed by an interrupted run"
 
 

@@ -30,3 +30,16 @@ def repeated_frames(frames):
     if moving.size == 0:
         return []
     return [int(t) + 1 for t in np.flatnonzero(still[:moving[-1]])]
+
+
+def describe_repeats(frames):
+    """The start of every repeated-frames warning: ``"N frame(s) (a, b, ...) repeat the
+    frame before to the last bit"``, the first 8 frames named.
+
+    Parameters
+    ----------
+    frames : sequence of int
+        What :func:`repeated_frames` returned (not empty).
+    """
+    shown = ", ".join(str(f) for f in frames[:8]) + (", ..." if len(frames) > 8 else "")
+    return f"{len(frames)} frame(s) ({shown}) repeat the frame before to the last bit"

@@ -205,6 +205,23 @@ def test_stale_experiments_follow_provenance_dependencies_and_cache(tmp_path):
     assert stale_experiments(entries, tmp_path, provenance, keys, {}) == {"other"}
 
 
+def test_dry_run_names_the_dependency_that_runs_again(tmp_path):
+    """A dependent current by its own provenance, whose cached key differs because an
+    experiment it depends on runs again, is said to depend on that one, not to follow an
+    interrupted run (which is said only when no dependency runs again)."""
+    from replication.regenerate import _why_stale
+    from replication.results import write_json_atomic
+
+    blocks = {"data": {}, "study": {"depends_on": ["data"]}}
+    provenance = {name: {"config_sha256": name, "code_sha256": "c"} for name in blocks}
+    write_json_atomic(tmp_path / "study" / "result.json", {"provenance": provenance["study"]})
+
+    def why(stale):
+        return _why_stale("study", tmp_path, provenance, stale, stale, blocks, False)
+    assert why({"data", "study"}) == "depends on data, which runs again"
+    assert why({"study"}) == "an experiment it depends on was recomputed by an interrupted run"
+
+
 def test_dependents_rerun_only_when_what_they_read_changed(tmp_path, capsys):
     log = tmp_path / "log.txt"
     blocks = {"data": {}, "same": {"depends_on": ["data"]}, "changed": {"depends_on": ["data"]}}

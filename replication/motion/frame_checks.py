@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from replication.motion.derivatives import gradient_threshold, pair_derivatives, smooth
-from replication.sequences import repeated_frames
+from replication.sequences import describe_repeats, repeated_frames
 
 # the checks measure on the pixels whose |grad I| is at least this share of its 99th
 # percentile (motion_single's own relative_threshold, so the noise check reads the voting
@@ -200,8 +200,7 @@ def repeated_frames_warning(frames):
     """The warning for frames that repeat the frame before while the scene moves after
     them (:func:`replication.sequences.repeated_frames`): the IRC equation reads the
     frames as equally spaced in time, so a repeated pair votes for no motion at all."""
-    shown = ", ".join(str(f) for f in frames[:8]) + (", ..." if len(frames) > 8 else "")
-    return (f"{len(frames)} frame(s) ({shown}) repeat the frame before to the last bit "
+    return (f"{describe_repeats(frames)} "
             "while the scene moves after them: a capture that dropped or repeated frames, or "
             "frames from before the motion began? The method takes the frames as equally "
             "spaced in time, so a repeated pair shows no motion and omega comes out low, "

@@ -25,7 +25,7 @@ from replication.cloth.noise import (
 )
 from replication.errors import InputError, check
 from replication.optim.objective import Objective
-from replication.sequences import repeated_frames
+from replication.sequences import describe_repeats, repeated_frames
 
 MODELS = ("5", "18")
 
@@ -389,8 +389,7 @@ def repeated_frames_warning(frames):
     not there)."""
     if not frames:
         return None
-    shown = ", ".join(str(f) for f in frames[:8]) + (", ..." if len(frames) > 8 else "")
-    return (f"{len(frames)} frame(s) ({shown}) repeat the frame before to the last bit "
+    return (f"{describe_repeats(frames)} "
             "while the cloth moves after them: a capture that dropped or repeated frames, "
             "or frames from before the motion began? The model steps dt from each frame to "
             "the next, so each repeat reads as a misfit, as noise or as an effect that is "

@@ -32,6 +32,52 @@ def repeated_frames(frames):
     return [int(t) + 1 for t in np.flatnonzero(still[:moving[-1]])]
 
 
+def still_points(frames):
+    """Points that never change, every value to the last bit, over the whole sequence while
+    other points move: a particle held still (a pin) or a pixel stuck.
+
+    Parameters
+    ----------
+    frames : (T, P, ...) array_like
+        The sequence, frame first, then the points.
+
+    Returns
+    -------
+    list of int
+        Indices of the still points (empty when there are none or nothing moves).
+    """
+    x = np.asarray(frames)
+    x = x.reshape(x.shape[0], x.shape[1], -1)
+    still = np.all(x == x[:1], axis=(0, 2))
+    if still.all():
+        return []
+    return [int(p) for p in np.flatnonzero(still)]
+
+
+def rounding_step(values, smallest):
+    """The step ``q`` the values are rounded to (every value ``v0 + k q``, ``k`` an
+    integer), or None: positions recorded to a fixed precision (integer millimetres, 0.1
+    mm). Steps below ``smallest`` are not looked for (a float's own resolution).
+
+    Parameters
+    ----------
+    values : array_like
+    smallest : float
+        The smallest step that counts, in the values' units.
+    """
+    v = np.unique(np.asarray(values, dtype=float).ravel())
+    v = v[np.isfinite(v)]
+    if v.size < 3:
+        return None
+    step = float(np.min(np.diff(v)))
+    if not step >= smallest:
+        return None
+    multiples = (v - v[0]) / step
+    if np.max(np.abs(multiples - np.round(multiples))) > 1e-3:
+        return None
+    return step
+
+
 def describe_repeats(frames):
     """The start of every repeated-frames warning: ``"N frame(s) (a, b, ...) repeat the
     frame before to the last bit"``, the first 8 frames named.

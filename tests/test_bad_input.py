@@ -91,6 +91,10 @@ def _motion_files(folder):
     frames = np.load(MOTION_REFERENCE)["frames"][:2].astype(float)
     write_sequence_npz(folder / "frames_8x8.npz", rng.random((2, 8, 8)))
     write_sequence_npz(folder / "strip_8x4000.npz", rng.random((2, 8, 4000)))
+    # 13 x 13 passed the size check and failed in the refinement without naming the file
+    write_sequence_npz(folder / "frames_14x14.npz", rng.random((2, 14, 14)))
+    np.savez(folder / "truth_array.npz", frames=rng.random((2, 32, 32)),
+             truth=np.frombuffer(b'{"objects": []}', dtype=np.uint8))
     write_sequence_npz(folder / "identical.npz", np.stack([frames[0], frames[0]]))
     write_sequence_npz(folder / "one_frame.npz", frames[:1])
     np.savez(folder / "huge_4000.npz",
@@ -115,6 +119,12 @@ def _motion_files(folder):
                                               "omega": 0.01}]})
     sequence("truth_null", truth={"objects": [{"label": 1, "xi": None, "eta": 1,
                                                "omega": 0.01}]})
+    sequence("truth_zero_omega", truth={"objects": [{"label": 1, "xi": 1.0, "eta": 1.0,
+                                                     "omega": 0}]})
+    sequence("truth_label_zero", labels=np.zeros(frames.shape, np.uint8),
+             truth={"objects": [{"label": 0, "xi": 1.0, "eta": 1.0, "omega": 0.01}]})
+    sequence("truth_huge_int", truth={"objects": [{"label": 1, "xi": 10 ** 400, "eta": 1,
+                                                   "omega": 0.01}]})
     sequence("truth_no_label", labels=np.zeros(frames.shape, np.uint8),
              truth={"objects": [{"xi": 1.0, "eta": 1.0, "omega": 0.01}]})
     broken = sequence("png_broken")
@@ -123,8 +133,11 @@ def _motion_files(folder):
 
 
 MOTION_CASES = {
-    "frames_8x8.npz": "no pixel inside the",
-    "strip_8x4000.npz": "no pixel inside the",
+    "frames_8x8.npz": "border that smoothing",
+    "strip_8x4000.npz": "border that smoothing",
+    "frames_14x14.npz": "expected frames of at least 16 x 16 pixels",
+    "truth_array.npz": "truth: found an array of shape (15,) and dtype uint8; expected one",
+    "truth_huge_int": "truth xi: found 100",
     "one_frame.npz": "T >= 2 frames",
     "huge_4000.npz": "limits.max_frame_pixels",
     "npy_named_npz.npz": "not an .npz archive",
@@ -215,13 +228,17 @@ MOTION_MATRIX = ([(e, f) for e in MOTION_READERS for f in MOTION_CASES]
                  + [(e, f) for e in ("bench_motion", "bench_segment")
                     for f in ("frames_8x8.npz", "huge_4000.npz", "truth_abc")]
                  + [("motion_single", "identical.npz"),
-                    ("segment_multi", "truth_no_label")])
+                    ("segment_multi", "truth_no_label"),
+                    ("motion_single", "truth_zero_omega"),
+                    ("segment_multi", "truth_label_zero")])
+ONE_READER_CASES = {"identical.npz": "no motion found", "truth_no_label": "has no 'label'",
+                    "truth_zero_omega": "truth omega: found 0 (an object that does not turn)",
+                    "truth_label_zero": "truth label 0: found a value of 0 or less"}
 
 
 @pytest.mark.parametrize("experiment, filename", MOTION_MATRIX)
 def test_bad_sequence_is_refused(bad, tmp_path, capsys, experiment, filename):
-    message = MOTION_CASES.get(filename, {"identical.npz": "no motion found"}.get(
-        filename, "has no 'label'"))
+    message = MOTION_CASES.get(filename) or ONE_READER_CASES[filename]
     status, err = replicate(capsys, *redirected(experiment, tmp_path / "work"),
                             f"data.path={bad / filename}", "method.omega_count=20"
                             if experiment == "motion_single" else "seed=0")

@@ -36,6 +36,7 @@ class Trajectory:
     velocities: np.ndarray | None = None
     meta: dict = field(default_factory=dict)
     source: str = "<memory>"
+    stored_as: str = "float64"    # the file's dtype of positions (read as float64)
 
     @property
     def n(self):
@@ -306,7 +307,7 @@ def _validated(raw, path):
 
     return Trajectory(positions=positions, dt=float(dt), mass=mass, gravity=gravity,
                       pinned=pinned, damping=damping, velocities=velocities, meta=meta,
-                      source=str(path))
+                      source=str(path), stored_as=str(raw["positions"].dtype))
 
 
 def _positive_number(value):

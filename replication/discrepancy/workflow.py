@@ -28,7 +28,9 @@ from scipy.stats import chi2
 
 from replication.cloth import regression
 from replication.cloth.identify.problem import (meaningless_noise_warning, motion_and_noise,
-                                                repeated_frames_warning, still_cloth_warning)
+                                                repeated_frames_warning, rounding_step_h,
+                                                still_cloth_warning, unlisted_pins,
+                                                unlisted_pins_warning)
 from replication.discrepancy import effects as fx
 from replication.discrepancy.gap import (
     STARTS,
@@ -540,9 +542,12 @@ def _warnings(data, base_fit, located, named_effects, gap_before, gap_after, lim
     held-out gap little, an anisotropic stiffness without anisotropy, a body force that
     looks like a unit or time-step mistake."""
     warnings = []
-    repeated = repeated_frames_warning(repeated_frames(data.trajectory.positions))
-    if repeated is not None:
-        warnings.append(repeated)
+    positions = data.trajectory.positions
+    for first in (repeated_frames_warning(repeated_frames(positions),
+                                          rounding_step_h(positions, data.h)),
+                  unlisted_pins_warning(unlisted_pins(data.trajectory))):
+        if first is not None:
+            warnings.append(first)
     motion_h, data_noise_h = motion_and_noise(data)
     still = still_cloth_warning(motion_h, min(data_noise_h, located.get("noise_sigma_h",
                                                                          data_noise_h)))
@@ -598,6 +603,15 @@ def _warnings(data, base_fit, located, named_effects, gap_before, gap_after, lim
             "structure test reads), so the misfit is where the constraint acts (a tau the "
             "base fit misses, anchors that move) or has no structure (frames out of order, "
             "another dt); reported as unexplained (unexplained.excess_power)")
+    stored = data.trajectory.stored_as
+    if unexplained is not None and stored in ("float16", "float32"):
+        resolution = float(np.finfo(stored).eps * np.max(np.abs(data.trajectory.positions)))
+        warnings.append(
+            f"the positions were stored as {stored}, rounded to about {resolution / data.h:.2g}"
+            " h at these coordinates: rounding is not white noise (it follows the "
+            "positions), and where the model fits closely the structure test can read it "
+            f"as structure: the unexplained verdict (Q {unexplained['Q']:.3g}) may be the "
+            "rounding's; store positions as float64 to tell")
     if (limit is not None and not named_effects and unexplained is None
             and (limit["share_of_weight"] or 0.0) > MENTION_LIMIT):
         warnings.append(
@@ -617,8 +631,14 @@ def _warnings(data, base_fit, located, named_effects, gap_before, gap_after, lim
                 "discrepancy.model=18 (a stiffness per spring type) may fit it")
         if effect["name"] == "body_force":
             force = np.array([effect["parameters"]["coefficients"][f"f_{c}"] for c in "xyz"])
-            share = float(np.linalg.norm(force)
-                          / (np.mean(data.mass) * np.linalg.norm(data.scene.gravity)))
+            weight = float(np.mean(data.mass) * np.linalg.norm(data.scene.gravity))
+            if weight == 0.0:
+                warnings.append(
+                    f"a body force of {np.linalg.norm(force):.3g} per particle is named while "
+                    "the file's gravity is 0: if the cloth falls, that force is gravity, "
+                    "missing from the file (its 'gravity' array, docs/data-formats.md)")
+                continue
+            share = float(np.linalg.norm(force) / weight)
             if share > MAX_BODY_FORCE:
                 warnings.append(
                     f"the named body force is {share:.3g} x the weight: a force that size "
@@ -690,6 +710,16 @@ def analyse(trajectory, config=None, *, rng=None):
                          f"discrepancy.holdout_every={settings['holdout_every']}")
     model = settings["model"]
     frames = regression.usable_frames(train, data.n_frames)
+    if settings["window"] > len(frames):
+        raise InputError(f"discrepancy.window={settings['window']}: longer than the "
+                         f"{len(frames)} frames the fits use ({data.n_frames} in "
+                         f"{trajectory.source}, less the held-out blocks); expected at most "
+                         f"{len(frames)} (no window would be whole: where the model misses "
+                         "would go unseen)")
+    if settings["patch"] > data.ops.n:
+        raise InputError(f"discrepancy.patch={settings['patch']}: wider than the "
+                         f"{data.ops.n} x {data.ops.n} mesh of {trajectory.source}; expected "
+                         f"at most {data.ops.n}")
     base_fit = regression.fit(data, train, model=model)
     mask = base_fit.mask
     located = where(data, base_fit, frames, window=settings["window"], patch=settings["patch"])

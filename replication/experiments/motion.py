@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from replication.errors import check
-from replication.motion import baselines, irc, single
-from replication.motion.derivatives import default_border, sequence_derivatives, too_small
+from replication.motion import baselines, irc, pyramid, single
+from replication.motion.derivatives import default_border, sequence_derivatives
 from replication.motion.io import (
     check_shape,
     read_listed,
@@ -162,12 +162,38 @@ def check_motion(sequence):
                               "turns")
 
 
-def check_border(sequence, sigma):
-    """Refuse frames too small to keep a pixel inside the border that smoothing by
-    ``sigma`` leaves invalid (named by the sequence's source)."""
+# pixels inside the invalid border a frame needs: the refinement keeps a pixel only when
+# its warped position is inside the border too (frames of 13 and 14 px at sigma 1.5, one
+# and two pixels inside, kept none)
+MIN_INSIDE = 4
+
+
+def check_border(sequence, sigma, coarse_side=None):
+    """Refuse frames too small to keep :data:`MIN_INSIDE` pixels inside the border that
+    smoothing by ``sigma`` leaves invalid (named by the sequence's source); with a pyramid
+    (``coarse_side``, the setting named in the message), its top level's frames.
+
+    Parameters
+    ----------
+    sequence : Sequence
+    sigma : float
+    coarse_side : tuple of (str, int), optional
+        ``(setting name, value)`` of the pyramid's top level side.
+    """
     border = default_border(sigma)
-    check(min(sequence.frames.shape[1:]) >= 2 * border + 1,
-          f"{sequence.source}: {too_small(sequence.frames.shape[1:], border, sigma)}")
+    side = 2 * border + MIN_INSIDE
+    shape = sequence.frames.shape[1:]
+    check(min(shape) >= side,
+          f"{sequence.source}: frames of {shape[0]} x {shape[1]} pixels: fewer than "
+          f"{MIN_INSIDE} inside the {border}-pixel border that smoothing (sigma={sigma:g}) "
+          f"leaves invalid; expected frames of at least {side} x {side} pixels")
+    if coarse_side is not None:
+        name, value = coarse_side
+        top = pyramid.top_shape(shape, int(value))
+        check(min(top) >= side,
+              f"{name}={value}: the pyramid's top level of {shape[0]} x {shape[1]} frames "
+              f"would have {top[0]} x {top[1]} pixels; expected at least {side} x {side} "
+              f"at sigma={sigma:g} (a larger {name}, or no pyramid for frames this small)")
 
 
 def check_grid(shape, settings):
@@ -184,9 +210,15 @@ def check_grid(shape, settings):
 
 
 def _truth_of(sequence):
-    if sequence.truth and sequence.truth.get("objects"):
-        return sequence.truth["objects"][0]
-    return None
+    """The first truth object of ``sequence`` (one rotation: motion_single, the accuracy
+    study), or None; refused when it does not turn (its errors are relative to |omega|)."""
+    if not (sequence.truth and sequence.truth.get("objects")):
+        return None
+    truth = sequence.truth["objects"][0]
+    check(truth["omega"] != 0, f"{sequence.source}: truth omega: found 0 (an object that does "
+          "not turn); expected the rotation's omega, which the errors are relative to "
+          "(segment_multi accepts still objects)")
+    return truth
 
 
 def _methods(config, settings):

@@ -23,7 +23,7 @@ from replication.experiments.motion import (
     check_grid,
     check_motion,
 )
-from replication.motion import baselines, irc, pyramid, single
+from replication.motion import baselines, coverage, irc, pyramid, single
 from replication.motion.frame_checks import frame_checks
 from replication.motion.derivatives import sequence_derivatives
 from replication.progress import bar, progress
@@ -41,6 +41,35 @@ FAR_CENTRE = 10.0
 # the best peak's own bias is about 9% in omega and a pixel in the centre, up to 33% in
 # omega on the finest textures (REPORT.md, motion_omega_bias)
 DISAGREE_PX, DISAGREE_CELLS, DISAGREE_OMEGA = 10.0, 3.0, 0.4
+
+
+# pixels move from this normal flow, pixels/frame (segment_multi's snake tolerance)
+MOVING_FLOW = 0.3
+
+
+def motion_outside_warnings(found):
+    """A warning when moving parts of the frame lie outside the region of the rotation
+    found (:func:`replication.motion.coverage.uncovered_motion`, on the voting pixels and
+    the refinement's region, both on the pyramid's top level with a pyramid): the sequence
+    holds another motion, which one rotation does not explain.
+
+    Parameters
+    ----------
+    found : dict
+        With ``pixels`` and ``region`` (:func:`find_rotation_shown`,
+        :func:`replication.motion.single.find_rotation`).
+    """
+    region = found["region"]
+    uncovered = coverage.uncovered_motion(region.shape, found["pixels"], [region], MOVING_FLOW)
+    if uncovered is None or not uncovered["warned"]:
+        return []
+    block = coverage.BLOCK
+    return [f"{100 * uncovered['share']:.0f}% of the moving blocks of {block} x {block} px "
+            f"({uncovered['outside']} of {uncovered['moving']}; the largest touching patch: "
+            f"{uncovered['patch']}) lie outside the region of the rotation found: the frames "
+            "hold another motion (an object turning the other way or at another speed, or "
+            "moving otherwise), which one rotation does not explain; segment_multi finds "
+            "several rotating regions"]
 
 
 def answer_warnings(paper, refined, settings, grid=None, shape=None):
@@ -233,7 +262,9 @@ def single_rotation(config, out):
     progress(f"{sequence.source}: {sequence.frames.shape[0]} frames of "
              f"{sequence.frames.shape[1]} x {sequence.frames.shape[2]}")
     check_motion(sequence)
-    check_border(sequence, settings["sigma"])
+    check_border(sequence, settings["sigma"],
+                 ("method.coarse_side", settings["coarse_side"])
+                 if settings["accumulation"] == "pyramid" else None)
     if settings["accumulation"] == "exact":
         check_grid(sequence.frames.shape[1:], settings)
         if np.prod(sequence.frames.shape[1:3]) > LARGE_EXACT_PIXELS:
@@ -256,7 +287,8 @@ def single_rotation(config, out):
         # the pyramid's grid is its top level's, in input pixels (cell x factor)
         "warnings": answer_warnings(paper, refined, settings, found["grid"],
                                     sequence.frames.shape[1:])
-        + checks["warnings"],
+        + motion_outside_warnings(found) + checks["warnings"]
+        + [f"note on the input: {note}" for note in sequence.notes],
         "frame_checks": checks["measures"],
         "seconds": found["seconds"],
         "pixels_used": int(len(found["pixels"])),

@@ -98,7 +98,9 @@ def score_objects(objects, labels, truth, *, centre_px=2.0, iou_min=0.7):
     Each true object (label ``k``, mask ``labels == k`` in frame 0) is matched to the found
     object of largest IoU with its mask; it is *found* when that IoU is at least ``iou_min``
     and the centre error at most ``centre_px``. A found object is *false* when most of its
-    mask lies on the static background (label 0).
+    mask lies on the static background (label 0), and *split* when most of it lies on a
+    true object that another found object matches better (the object found in pieces,
+    or twice).
 
     Parameters
     ----------
@@ -112,17 +114,19 @@ def score_objects(objects, labels, truth, *, centre_px=2.0, iou_min=0.7):
     -------
     dict
         ``per_object`` (label, iou, centre_px, omega_pct, found; the errors are None when
-        no found object overlaps the true one), ``false_regions``, ``n_found_objects``.
+        no found object overlaps the true one), ``false_regions``, ``split_regions``,
+        ``n_found_objects``.
     """
-    rows = []
+    rows, best_of = [], {}
     for item in truth["objects"]:
         true_mask = labels == item["label"]
         best, best_iou = None, 0.0
-        for found in objects:
+        for index, found in enumerate(objects):
             union = np.count_nonzero(true_mask | found["mask"])
             iou = np.count_nonzero(true_mask & found["mask"]) / union if union else 0.0
             if iou > best_iou:
                 best, best_iou = found, iou
+                best_of[item["label"]] = index
         row = {"label": item["label"], "iou": float(best_iou), "centre_px": None,
                "omega_pct": None, "found": False}
         if best is not None:
@@ -132,10 +136,18 @@ def score_objects(objects, labels, truth, *, centre_px=2.0, iou_min=0.7):
                                          / abs(item["omega"]))
             row["found"] = bool(best_iou >= iou_min and row["centre_px"] <= centre_px)
         rows.append(row)
-    false = sum(1 for found in objects
-                if np.count_nonzero(found["mask"] & (labels == 0))
-                > 0.5 * np.count_nonzero(found["mask"]))
-    return {"per_object": rows, "false_regions": int(false), "n_found_objects": len(objects)}
+    false = split = 0
+    for index, found in enumerate(objects):
+        under = labels[np.asarray(found["mask"], dtype=bool)]
+        if np.count_nonzero(under == 0) > 0.5 * under.size:
+            false += 1
+            continue
+        values, counts = np.unique(under[under != 0], return_counts=True)
+        if counts.size and 2 * counts.max() > under.size:   # most of it on one true object
+            label = values[np.argmax(counts)]
+            split += int(label in best_of and best_of[label] != index)
+    return {"per_object": rows, "false_regions": int(false), "split_regions": int(split),
+            "n_found_objects": len(objects)}
 
 
 def _load(config):

@@ -15,6 +15,8 @@ from replication.errors import check
 from replication.experiments.motion import (EDGE_CELLS, check_border, check_motion,
                                              figure_folder)
 from replication.experiments.segment import _load, score_objects
+from replication.motion import coverage
+from replication.motion.derivatives import sequence_derivatives
 from replication.motion.frame_checks import frame_checks
 from replication.progress import progress
 
@@ -100,76 +102,59 @@ def translation_warnings(frames, settings, pixels=None):
     return []
 
 
-BLOCK = 16              # side (px) of the blocks the moving-pixel check counts in
-BLOCK_MOVING = 0.5      # a block moves when this share of its selected pixels moves
-UNCOVERED_SHARE = 0.2   # moving blocks outside every object above this share are warned
-# ... and so is a patch of at least this many touching (8-connected) moving blocks outside
-# every object, whatever their share: a small object missed beside large ones found.
-# Measured once (a script outside the suite: the pipeline's segmentation of the 8
-# committed multi sequences, seeds 0-2 without noise, seed 0 with Gaussian noise 2 to
-# 6 /255): with every object found, 0 such blocks without noise and patches of at most 3
-# blocks at 2 to 4 /255 (at 5 and 6 /255 noise moves more than 20% of the blocks); with
-# one found object left out, patches of 3 to 21 blocks
-UNCOVERED_PATCH = 4
-
-
 def motion_outside_warnings(frames, found, settings, pixels=None):
-    """A warning when moving parts of the frame lie outside every object found: an object
-    turning faster or slower than the omega sweep, or moving otherwise, is missed silently
-    (its pixels belong to no region), and when no object is found at all.
-
-    Pixels move when their normal flow ``|It| / |grad I|`` is at least the snake's
-    ``tolerance``; noise makes single pixels move, so the check counts blocks of
-    :data:`BLOCK` px in which at least :data:`BLOCK_MOVING` of the selected pixels move,
-    and a block is covered when an object's mask (grown by one block) reaches its centre;
-    it warns when more than :data:`UNCOVERED_SHARE` of the moving blocks are not covered,
-    or :data:`UNCOVERED_PATCH` of them touch (a small object missed beside large ones).
-    ``pixels``: the full-resolution derivatives when the caller has them."""
-    from scipy import ndimage
-
-    from replication.motion.derivatives import sequence_derivatives
-
+    """A warning when moving parts of the frame lie outside every object found
+    (:func:`replication.motion.coverage.uncovered_motion`): an object turning faster or
+    slower than the omega sweep, or moving otherwise, is missed silently (its pixels belong
+    to no region), and when no object is found at all. Pixels move when their normal flow
+    is at least the snake's ``tolerance``. ``pixels``: the full-resolution derivatives
+    when the caller has them."""
     ea = settings["ea"]
     if pixels is None:
         pixels = sequence_derivatives(frames, sigma=ea["sigma"],
                                       relative_threshold=ea["relative_threshold"])
-    height, width = frames.shape[1:3]
-    shape = (-(-height // BLOCK), -(-width // BLOCK))
-    if len(pixels) == 0:
-        return []
-    moving = pixels.normal_flow >= settings["snake"]["tolerance"]
-    cell = (np.asarray(pixels.y, int) // BLOCK) * shape[1] + np.asarray(pixels.x, int) // BLOCK
-    selected = np.bincount(cell, minlength=shape[0] * shape[1])
-    moved = np.bincount(cell, weights=moving, minlength=shape[0] * shape[1])
-    blocks = (selected > 0) & (moved >= BLOCK_MOVING * np.maximum(selected, 1))
-    if not blocks.any():
+    uncovered = coverage.uncovered_motion(frames.shape[1:3], pixels,
+                                          [item["mask"] for item in found["objects"]],
+                                          settings["snake"]["tolerance"])
+    if uncovered is None:
         return ([] if found["objects"] else
                 ["no rotating object found, and no part of the frame moves beyond single "
                  "pixels (a still scene, or noise only)"])
-    covered = np.zeros((height, width), dtype=bool)
-    for item in found["objects"]:
-        covered |= np.asarray(item["mask"], dtype=bool)
-    covered = ndimage.binary_dilation(covered, iterations=BLOCK) if covered.any() else covered
-    centres_y = np.minimum(np.arange(shape[0]) * BLOCK + BLOCK // 2, height - 1)
-    centres_x = np.minimum(np.arange(shape[1]) * BLOCK + BLOCK // 2, width - 1)
-    inside = covered[np.ix_(centres_y, centres_x)].ravel()
-    outside = blocks & ~inside
-    share = np.count_nonzero(outside) / np.count_nonzero(blocks)
-    patches, _ = ndimage.label(outside.reshape(shape), structure=np.ones((3, 3)))
-    patch = int(np.bincount(patches.ravel())[1:].max(initial=0))
+    block = coverage.BLOCK
     if not found["objects"]:
-        return [f"no rotating object found, yet {np.count_nonzero(blocks)} block(s) of "
-                f"{BLOCK} x {BLOCK} px move: an object may turn faster or slower than the "
+        return [f"no rotating object found, yet {uncovered['moving']} block(s) of "
+                f"{block} x {block} px move: an object may turn faster or slower than the "
                 "omega bounds (method.ea.omega_min, method.ea.omega_max) or "
                 "move otherwise (a translation, a deformation), or noise moves them"]
-    if share <= UNCOVERED_SHARE and patch < UNCOVERED_PATCH:
+    if not uncovered["warned"]:
         return []
-    return [f"{100 * share:.0f}% of the moving blocks of {BLOCK} x {BLOCK} px "
-            f"({np.count_nonzero(outside)} of {np.count_nonzero(blocks)}; the largest "
-            f"touching patch: {patch}) lie outside every object found: another object may "
-            "turn faster or slower than the omega bounds "
+    return [f"{100 * uncovered['share']:.0f}% of the moving blocks of {block} x {block} px "
+            f"({uncovered['outside']} of {uncovered['moving']}; the largest "
+            f"touching patch: {uncovered['patch']}) lie outside every object found: another "
+            "object may turn faster or slower than the omega bounds "
             "(method.ea.omega_min, method.ea.omega_max) or move otherwise (a translation, a "
             "deformation), and is missed (or noise moves them)"]
+
+
+def translating_object_warnings(frames, found, settings, pixels=None):
+    """A warning per object found whose own motion one translation explains about as well
+    as a rotation (:func:`replication.motion.coverage.translating_regions`): a translating
+    object is found as rotating pieces, often pairs turning opposite ways, each a
+    meaningless rotation. ``pixels``: the full-resolution derivatives when the caller has them."""
+    ea = settings["ea"]
+    if pixels is None:
+        pixels = sequence_derivatives(frames, sigma=ea["sigma"],
+                                      relative_threshold=ea["relative_threshold"])
+    objects = found["objects"]
+    return [f"object {hit['index']}: moves like one translation ({hit['u']:.3g}, "
+            f"{hit['v']:.3g}) px/frame (a rotation about any point fits its normal flow only "
+            f"{100 * hit['gain']:.0f}% better): it may be a piece of a translating object "
+            "(found as rotations, often pieces turning opposite ways) or of a rotation about "
+            "a point far away; its rotation "
+            f"({objects[hit['index']]['xi']:.4g}, {objects[hit['index']]['eta']:.4g}, "
+            f"omega {objects[hit['index']]['omega']:.3g}) is then not the object's motion"
+            for hit in coverage.translating_regions(pixels, [item["mask"] for item in objects],
+                                                    settings["snake"]["tolerance"])]
 
 
 def edge_warnings(found, settings):
@@ -223,6 +208,12 @@ def segment_sequence(config, out):
         check(not unlabelled, f"{sequence.source}: truth object {unlabelled[:1]} has no "
                               "'label'; expected the label value of each object (scoring "
                               "against the labels needs it)")
+        background = [item["label"] for item in sequence.truth["objects"]
+                      if item["label"] <= 0]
+        check(not background, f"{sequence.source}: truth label "
+                              f"{background[0] if background else ''}: found a "
+                              "value of 0 or less (0 is the static background's); expected "
+                              "the label value of each object's pixels, from 1")
         present = np.unique(sequence.labels[0])
         absent = [item["label"] for item in sequence.truth["objects"]
                   if item["label"] not in present]
@@ -232,7 +223,9 @@ def segment_sequence(config, out):
                           "value of each object's pixels (scoring would count the object as "
                           "not found)")
     check_motion(sequence)
-    check_border(sequence, settings["ea"]["sigma"])
+    check_border(sequence, settings["ea"]["sigma"],
+                 ("method.pyramid.coarse_side", settings["pyramid"]["coarse_side"])
+                 if settings["pyramid"]["enabled"] else None)
     start = time.perf_counter()
     found = segmentation.segment(sequence.frames, settings, int(config["seed"]))
     seconds = time.perf_counter() - start
@@ -243,14 +236,18 @@ def segment_sequence(config, out):
               "snake_iterations": [r["iterations"] for r in found["regions"]]}
     progress(f"{len(found['objects'])} object(s) in {seconds:.1f} s")
     # without a pyramid the segmentation's pixels are these derivatives (same settings)
-    result["warnings"] = translation_warnings(
-        sequence.frames, settings, None if "pyramid" in found else found["pixels"])
+    ea = settings["ea"]
+    pixels = (sequence_derivatives(sequence.frames, sigma=ea["sigma"],
+                                   relative_threshold=ea["relative_threshold"])
+              if "pyramid" in found else found["pixels"])
+    result["warnings"] = translation_warnings(sequence.frames, settings, pixels)
     result["warnings"] += edge_warnings(found, settings)
-    result["warnings"] += motion_outside_warnings(
-        sequence.frames, found, settings, None if "pyramid" in found else found["pixels"])
+    result["warnings"] += motion_outside_warnings(sequence.frames, found, settings, pixels)
+    result["warnings"] += translating_object_warnings(sequence.frames, found, settings, pixels)
     # what the IRC equation assumes of the whole frame: motion_single's checks
     checks = frame_checks(sequence.frames, sigma=settings["ea"]["sigma"])
     result["warnings"] += checks["warnings"]
+    result["warnings"] += [f"note on the input: {note}" for note in sequence.notes]
     result["frame_checks"] = checks["measures"]
     if "pyramid" in found:
         result["pyramid"] = {"factor": found["pyramid"]["factor"],

@@ -42,6 +42,7 @@ class Sequence:
     labels: np.ndarray | None
     truth: dict | None
     source: str
+    notes: tuple = ()     # the reader's notes on the input (also printed on stderr)
 
 
 def _fail(path, field, found, expected):
@@ -71,8 +72,13 @@ def _luminance(path, image):
     return image
 
 
+_NOTES = []   # the notes of the sequence being read (read_sequence keeps them)
+
+
 def _note(path, text):
-    """A remark on input that is read but not exact (lossy compression), on stderr."""
+    """A remark on input that is read but not exact (lossy compression), on stderr; kept
+    for the :class:`Sequence` being read."""
+    _NOTES.append(f"{path}: {text}")
     print(f"note: {path}: {text}", file=sys.stderr, flush=True)
 
 
@@ -313,9 +319,12 @@ def _parse_truth(path, text):
             _fail(path, "truth label", f"{json.dumps(label)}", "an integer label value")
         for key in ("xi", "eta", "omega"):
             value = item[key]
+            # NaN compares false, an integer beyond float range compares exactly
             if isinstance(value, bool) or not isinstance(value, (int, float)) \
-                    or not np.isfinite(value):
-                _fail(path, f"truth {key}", f"{json.dumps(value)}", "a finite number")
+                    or not abs(value) <= sys.float_info.max:
+                shown = json.dumps(value)
+                _fail(path, f"truth {key}", shown if len(shown) <= 40 else shown[:37] + "...",
+                      "a finite number")
     return truth
 
 
@@ -425,7 +434,20 @@ def _read_npz(path):
         if not np.issubdtype(labels.dtype, np.integer):
             _fail(path, "labels", f"dtype {labels.dtype}", "integer labels (0 = background)")
         labels = labels.astype(np.int64)
-    truth = _parse_truth(path, str(raw["truth"])) if "truth" in raw else None
+    truth = None
+    if "truth" in raw:
+        text = raw["truth"]
+        if text.ndim != 0 or text.dtype.kind not in "US":
+            _fail(path, "truth", f"an array of shape {text.shape} and dtype {text.dtype}",
+                  "one JSON string (np.array(json.dumps(truth)))")
+        text = text.item()
+        if isinstance(text, bytes):
+            try:
+                text = text.decode("utf-8")
+            except UnicodeDecodeError as error:
+                _fail(path, "truth", f"bytes that are not UTF-8 (at byte {error.start})",
+                      "one JSON string")
+        truth = _parse_truth(path, text)
     return frames, labels, truth
 
 
@@ -456,6 +478,7 @@ def read_sequence(path):
         raise InputError(f"{path}: no such file or folder; expected {expected}")
     suffix = path.suffix.lower()
     labels = truth = None
+    _NOTES.clear()
     if path.is_dir():
         frames, labels, truth = _read_folder(path)
     elif suffix == ".npz":
@@ -475,7 +498,8 @@ def read_sequence(path):
     _check_frames(path, frames)
     if labels is not None and labels.shape != frames.shape:
         _fail(path, "labels", f"shape {labels.shape}", f"the frames' shape {frames.shape}")
-    return Sequence(frames=frames, labels=labels, truth=truth, source=str(path))
+    return Sequence(frames=frames, labels=labels, truth=truth, source=str(path),
+                    notes=tuple(_NOTES))
 
 
 def read_manifest_sequences(path, maker):

@@ -73,9 +73,25 @@ def levels(frames, coarse_side):
         ``levels[k]`` has ``factor = 2**k``.
     """
     pyramid = [np.asarray(frames, dtype=float)]
-    while max(pyramid[-1].shape[1:]) > coarse_side and min(pyramid[-1].shape[1:]) >= 4:
+    top = top_shape(pyramid[0].shape[1:], coarse_side)
+    while pyramid[-1].shape[1:] != top:
         pyramid.append(reduce(pyramid[-1]))
     return pyramid
+
+
+def top_shape(shape, coarse_side):
+    """``(H, W)`` of the top level :func:`levels` builds for frames of ``shape``: halved
+    (:func:`reduce`) until both sides are at most ``coarse_side``, or a side under 4.
+
+    Parameters
+    ----------
+    shape : (H, W)
+    coarse_side : int
+    """
+    height, width = shape
+    while max(height, width) > coarse_side and min(height, width) >= 4:
+        height, width = height // 2, width // 2
+    return height, width
 
 
 def to_input(value, factor):

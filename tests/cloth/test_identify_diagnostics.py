@@ -256,3 +256,27 @@ def test_repeated_frames_are_named_before_the_misfit_they_cause(runs):
     clean, warnings = _diagnose(_write(runs["folder"] / "clean.npz", runs[0.01]), 4.0, 0.01)
     assert clean["repeated_frames"] == [] and not any("repeat the frame" in w
                                                       for w in warnings)
+
+
+def test_a_pin_missing_from_the_file_is_named_first(runs):
+    """An outside user's file listed one of its two pins: the still corner, read as a free
+    particle, gave a misfit (and a mass effect in the discrepancy workflow) and no word of
+    the cause."""
+    trajectory = _write(runs["folder"] / "one_pin.npz", runs[0.01], pinned=((0, 0),))
+    found, warnings = _diagnose(trajectory, 4.0, 0.01)
+    assert found["unlisted_pins"] == [[0, N - 1]]
+    assert warnings[0].startswith(f"1 free particle(s) ((0, {N - 1})) never move"), warnings
+    clean, warnings = _diagnose(_write(runs["folder"] / "pins.npz", runs[0.01]), 4.0, 0.01)
+    assert clean["unlisted_pins"] == [] and not any("never move" in w for w in warnings)
+
+
+def test_rounded_positions_are_measured_and_float_resolution_is_not():
+    from replication.sequences import rounding_step
+
+    rng = np.random.default_rng(3)
+    exact = rng.uniform(-1.0, 1.0, (40, 7, 7, 3))
+    assert problem.rounding_step_h(np.round(exact / 1e-3) * 1e-3, 0.1) == pytest.approx(1e-2)
+    assert problem.rounding_step_h(np.round(exact * 1000.0), 100.0) == pytest.approx(1e-2)
+    assert problem.rounding_step_h(exact, 0.1) is None
+    assert problem.rounding_step_h(exact.astype(np.float32).astype(float), 0.1) is None
+    assert rounding_step([1.0, 1.0], 1e-9) is None

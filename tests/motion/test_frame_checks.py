@@ -123,3 +123,33 @@ def test_both_runners_add_the_frame_warnings(tmp_path):
         measures = result["frame_checks"]
         assert measures["brightness_pct"] > measures["thresholds"]["brightness_pct"]
         assert measures["noise_flow"] < measures["thresholds"]["noise_flow"]
+
+
+def test_two_regions_turning_opposite_ways_are_warned_by_motion_single():
+    """An outside user's two discs turning at +-0.03 rad/frame: motion_single answered one
+    rotation, the other disc unexplained and unwarned. Its moving blocks outside the
+    region found are warned now (the check segment_multi uses); one disc is not."""
+    from scipy import ndimage
+
+    from replication.experiments.motion_single import motion_outside_warnings
+    from replication.motion import single
+
+    side = 128
+    texture = ndimage.gaussian_filter(np.random.default_rng(5).random((side, 2 * side)), 2.0)
+    yy, xx = np.mgrid[:side, :2 * side]
+
+    def turned(cx, omega, t):   # the texture turned about (cx, 64), with scipy alone
+        centred = ndimage.shift(texture, (0, side - cx), order=3, mode="nearest")
+        centred = ndimage.rotate(centred, np.degrees(omega * t), reshape=False, order=3,
+                                 mode="nearest")
+        return ndimage.shift(centred, (0, cx - side), order=3, mode="nearest")
+
+    left = (xx - 64) ** 2 + (yy - 64) ** 2 <= 40 ** 2
+    right = (xx - 192) ** 2 + (yy - 64) ** 2 <= 40 ** 2
+    both = np.array([np.where(left, turned(64, 0.03, t), np.where(right, turned(192, -0.03, t),
+                                                                  texture)) for t in range(3)])
+    one = np.array([np.where(left, turned(64, 0.03, t), texture) for t in range(3)])
+    settings = single.settings_from(None)
+    warned = motion_outside_warnings(single.find_rotation(both, settings))
+    assert len(warned) == 1 and "lie outside the region of the rotation found" in warned[0]
+    assert motion_outside_warnings(single.find_rotation(one, settings)) == []

@@ -202,3 +202,17 @@ def test_a_manifest_path_is_found_beside_the_manifest(tmp_path, monkeypatch, cap
     monkeypatch.chdir(folder)   # the same file both ways: no note
     read_manifest_sequences("manifest.json", "motion_data")
     assert capsys.readouterr().err == ""
+
+
+def test_the_readers_notes_are_kept_with_the_sequence(tmp_path):
+    """The note on frames read out of number order reached stderr only: result.json, which
+    outside checks read, had no word of it. The sequence keeps its notes (motion_single and
+    segment_multi write them among their warnings); a clean read has none."""
+    folder = tmp_path / "seq"
+    folder.mkdir()
+    for i, frame in enumerate(frames_like(11)):
+        write_png(folder / f"frame_{i}.png", (frame * 255).astype(np.uint8))
+    notes = read_sequence(folder).notes
+    assert len(notes) == 1 and "(frame_10.png before frame_2.png)" in notes[0]
+    write_sequence_folder(tmp_path / "padded", frames_like(11))
+    assert read_sequence(tmp_path / "padded").notes == ()

@@ -167,3 +167,21 @@ def test_segmentation_refuses_bad_pyramid_settings():
 
     with pytest.raises(InputError, match=r"method.pyramid.coarse_side=4: expected an integer"):
         segmentation.settings_from({"pyramid": {"coarse_side": 4}})
+
+
+def test_top_shape_is_the_shape_of_the_top_level_and_a_small_one_is_refused():
+    """A coarse_side leaving a top level too small for the border was refused naming the
+    reduced frames (8 x 20), which the user never gave."""
+    from replication.errors import InputError
+    from replication.experiments.motion import check_border
+    from replication.motion.io import Sequence
+
+    for shape, coarse in (((64, 160), 32), ((300, 301), 256), ((33, 70), 16), ((20, 20), 64)):
+        frames = np.zeros((2, *shape))
+        assert pyramid.levels(frames, coarse)[-1].shape[1:] == pyramid.top_shape(shape, coarse)
+    sequence = Sequence(frames=np.random.default_rng(0).random((2, 64, 160)), labels=None,
+                        truth=None, source="seq")
+    check_border(sequence, 1.5, ("method.coarse_side", 64))
+    with pytest.raises(InputError, match=r"method.coarse_side=32: the pyramid's top level of "
+                                         r"64 x 160 frames would have 8 x 20 pixels"):
+        check_border(sequence, 1.5, ("method.coarse_side", 32))

@@ -427,3 +427,56 @@ def test_flow_baseline_finds_the_same_objects_at_any_intensity_scale(two_objects
     for a, b in zip(*found):
         assert abs(a["xi"] - b["xi"]) < 0.05 and abs(a["omega"] - b["omega"]) < 1e-4
         assert np.array_equal(a["mask"], b["mask"])
+
+
+def _translating_disc(side=128, radius=30, frames=3, speed=1.0):
+    """A smooth random texture whose disc about the centre shifts by ``speed`` px/frame
+    along x (scipy's shift, nothing of the suite) over a still background."""
+    from scipy import ndimage
+
+    texture = ndimage.gaussian_filter(np.random.default_rng(4).random((side, side)), 2.0)
+    yy, xx = np.mgrid[:side, :side]
+    disc = (xx - side / 2) ** 2 + (yy - side / 2) ** 2 <= radius ** 2
+    out = [np.where(disc, ndimage.shift(texture, (0, speed * t), order=3, mode="nearest"),
+                    texture) for t in range(frames)]
+    return np.array(out), disc, xx
+
+
+def test_a_translating_object_found_as_rotating_pieces_is_warned():
+    """An outside user's disc shifting 1 px/frame was found as rotating pieces turning
+    opposite ways (a 'rotation' each) without a word. Each half of it is warned as moving
+    like one translation; a disc turning about its own centre is not."""
+    from replication.experiments.segment_multi import translating_object_warnings
+    from replication.motion.coverage import translating_regions
+
+    settings = segmentation.settings_from(None)
+    frames, disc, xx = _translating_disc()
+    halves = [{"mask": disc & (xx < 64), "xi": 50.0, "eta": 64.0, "omega": 0.05},
+              {"mask": disc & (xx >= 64), "xi": 78.0, "eta": 64.0, "omega": -0.05}]
+    warned = translating_object_warnings(frames, {"objects": halves}, settings)
+    assert [w.split(":")[0] for w in warned] == ["object 0", "object 1"]
+    assert all("moves like one translation (1" in w for w in warned), warned
+    turning, turning_disc = _turning_disc(0.03)
+    from replication.motion.derivatives import sequence_derivatives
+    pixels = sequence_derivatives(turning, sigma=1.5, relative_threshold=0.15)
+    assert translating_regions(pixels, [turning_disc], settings["snake"]["tolerance"]) == []
+
+
+def test_objects_found_in_pieces_are_scored_as_split():
+    """Five objects on one true disc (one matching it, four pieces) scored 0 false regions
+    and nothing else: the pieces are split regions now."""
+    from replication.experiments.segment import score_objects
+
+    labels = np.zeros((64, 64), dtype=int)
+    labels[10:50, 10:50] = 1
+    whole = {"mask": labels == 1, "xi": 30.0, "eta": 30.0, "omega": 0.02}
+    piece = np.zeros((64, 64), dtype=bool)
+    piece[12:20, 12:20] = True
+    background = np.zeros((64, 64), dtype=bool)
+    background[55:, 55:] = True
+    found = [whole, {"mask": piece, "xi": 15.0, "eta": 15.0, "omega": -0.05},
+             {"mask": background, "xi": 60.0, "eta": 60.0, "omega": 0.03}]
+    score = score_objects(found, labels, {"objects": [{"label": 1, "xi": 30.0, "eta": 30.0,
+                                                       "omega": 0.02}]})
+    assert (score["false_regions"], score["split_regions"]) == (1, 1)
+    assert score["per_object"][0]["found"] is True

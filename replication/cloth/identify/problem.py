@@ -25,7 +25,8 @@ from replication.cloth.noise import (
 )
 from replication.errors import InputError, check
 from replication.optim.objective import Objective
-from replication.sequences import describe_repeats, repeated_frames
+from replication.sequences import (describe_repeats, repeated_frames, rounding_step,
+                                   still_points)
 
 MODELS = ("5", "18")
 
@@ -327,7 +328,9 @@ def _residual_fit(cost, best):
                    "data_noise_h": data_h, "robust_misfit": robust,
                    "residual_frames": [int(frames[0]), int(frames[-1])],
                    "motion_h": motion_h, "position_noise_h": noise_h,
-                   "repeated_frames": repeated_frames(positions)}
+                   "repeated_frames": repeated_frames(positions),
+                   "rounding_step_h": rounding_step_h(positions, data.h),
+                   "unlisted_pins": unlisted_pins(cost.trajectory)}
 
 
 def meaningless_noise_warning(noise_h):
@@ -381,20 +384,81 @@ def still_cloth_warning(motion_h, noise_h):
             "(a cloth at rest, or noise only); the answer means nothing")
 
 
-def repeated_frames_warning(frames):
+# positions rounded to a step below this (units of h) are not looked for: a float's own
+# resolution (float32 at a few h from the origin: about 1e-6 h)
+SMALLEST_ROUNDING_H = 1e-5
+
+
+def rounding_step_h(positions, h):
+    """The step the positions are rounded to, in units of ``h``
+    (:func:`replication.sequences.rounding_step`), or None.
+
+    Parameters
+    ----------
+    positions : (T, n, n, 3) ndarray
+    h : float
+        The mesh's structural rest length.
+    """
+    step = rounding_step(positions, SMALLEST_ROUNDING_H * h)
+    return None if step is None else step / h
+
+
+def repeated_frames_warning(frames, rounding_h=None):
     """The warning that frames repeat the frame before while the cloth moves after them
     (:func:`replication.sequences.repeated_frames`), or None. One check for every workflow
     that fits the cloth model: the model steps ``dt`` from each frame to the next, so a
     repeat reads as a still step and a double one (a misfit, noise, or an effect that is
-    not there)."""
+    not there). ``rounding_h``: the positions' rounding step (:func:`rounding_step_h`),
+    under which slow motion repeats frames by itself."""
     if not frames:
         return None
+    if rounding_h is not None:
+        return (f"{describe_repeats(frames)} while the cloth moves after them, and the "
+                f"positions are rounded to steps of {rounding_h:.3g} h: where the cloth "
+                "moves less than a step between frames (as it starts from rest) the frame "
+                "repeats, so these repeats may be the rounding's, not a capture's. Rounding "
+                f"this coarse is noise of about {rounding_h / np.sqrt(12):.2g} h per "
+                "coordinate, held over frames where the motion is slow, which the model "
+                "reads as a misfit or as an effect that is not there; record the positions "
+                "more finely, or start the trajectory where the motion exceeds a step")
     return (f"{describe_repeats(frames)} "
             "while the cloth moves after them: a capture that dropped or repeated frames, "
             "or frames from before the motion began? The model steps dt from each frame to "
             "the next, so each repeat reads as a misfit, as noise or as an effect that is "
             "not there; cut the trajectory at them (or restore the missing frames) before "
             "reading the answer")
+
+
+def unlisted_pins(trajectory):
+    """Free particles ``[i, j]`` that never move, to the last bit, in any frame while the
+    cloth moves (:func:`replication.sequences.still_points`): pins the file's ``pinned``
+    does not list (the pinned ones that move are refused when the file is read).
+
+    Parameters
+    ----------
+    trajectory : replication.cloth.io.Trajectory
+    """
+    positions = trajectory.positions
+    n = positions.shape[1]
+    free = trajectory.scene().free
+    return [list(divmod(p, n)) for p in still_points(positions.reshape(len(positions), -1, 3))
+            if free[p]]
+
+
+def unlisted_pins_warning(particles):
+    """The warning that free particles never move (:func:`unlisted_pins`), or None. One
+    check for every workflow that fits the cloth model: the model moves every free
+    particle, so a pin it does not know of reads as a misfit or as an effect that is not
+    there."""
+    if not particles:
+        return None
+    shown = ", ".join(f"({i}, {j})" for i, j in particles[:8]) \
+        + (", ..." if len(particles) > 8 else "")
+    return (f"{len(particles)} free particle(s) ({shown}) never move, to the last bit, "
+            "while the cloth moves: pins the file's 'pinned' does not list? The model "
+            "moves every free particle, so each such pin reads as a misfit or as an effect "
+            "that is not there; add them to 'pinned' (as (i, j), docs/data-formats.md) "
+            "before reading the answer")
 
 
 def diagnostic_warnings(diagnostics, best, names):
@@ -428,9 +492,11 @@ def diagnostic_warnings(diagnostics, best, names):
             f"without a model ({diagnostics['data_noise_h']:.2g} h): the answer is off "
             "(approximate, or a local optimum), the model lacks an effect, or the noise "
             "is far from even across particles")
-    repeated = repeated_frames_warning(diagnostics.get("repeated_frames"))
-    if repeated is not None:   # first: it explains the lines that follow
-        warnings.insert(0, repeated)
+    for first in reversed([repeated_frames_warning(diagnostics.get("repeated_frames"),
+                                                   diagnostics.get("rounding_step_h")),
+                           unlisted_pins_warning(diagnostics.get("unlisted_pins"))]):
+        if first is not None:   # first: they explain the lines that follow
+            warnings.insert(0, first)
     still = (still_cloth_warning(diagnostics["motion_h"],
                                  min(diagnostics["position_noise_h"], diagnostics["noise_h"]))
              if "motion_h" in diagnostics else None)

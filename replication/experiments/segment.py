@@ -228,6 +228,7 @@ def _summarise_study(rows, methods, role="study"):
             if detected else None,
             "iou_median": float(np.median([o["iou"] for o in objects])),
             "false_regions_per_run": float(np.mean([r["false_regions"] for r in mine])),
+            "split_regions_per_run": float(np.mean([r["split_regions"] for r in mine])),
             "static_false_regions_per_run": float(np.mean([r["false_regions"] for r in static]))
             if static else None,
             "seconds_median": float(np.median([r["seconds"] for r in mine])),

@@ -43,7 +43,9 @@ FAR_CENTRE = 10.0
 DISAGREE_PX, DISAGREE_CELLS, DISAGREE_OMEGA = 10.0, 3.0, 0.4
 
 
-# pixels move from this normal flow, pixels/frame (segment_multi's snake tolerance)
+# pixels move from this normal flow, pixels/frame (segment_multi's default snake tolerance,
+# SNAKE_DEFAULTS["tolerance"]; not imported: the command line would then take the
+# segmentation's settings as motion_single's, since it merges the *DEFAULTS its runner reaches)
 MOVING_FLOW = 0.3
 
 

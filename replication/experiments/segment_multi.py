@@ -87,7 +87,6 @@ def translation_warnings(frames, settings, pixels=None):
     ``frames`` at the settings' ``sigma`` and threshold when the caller has them (the
     segmentation without a pyramid); computed here otherwise."""
     from replication.motion import irc
-    from replication.motion.derivatives import sequence_derivatives
 
     ea = settings["ea"]
     if pixels is None:

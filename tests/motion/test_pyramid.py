@@ -172,7 +172,6 @@ def test_segmentation_refuses_bad_pyramid_settings():
 def test_top_shape_is_the_shape_of_the_top_level_and_a_small_one_is_refused():
     """A coarse_side leaving a top level too small for the border was refused naming the
     reduced frames (8 x 20), which the user never gave."""
-    from replication.errors import InputError
     from replication.experiments.motion import check_border
     from replication.motion.io import Sequence
 

@@ -34,6 +34,7 @@ from omegaconf import DictConfig, OmegaConf
 from replication.errors import InputError, check
 from replication.guard import (LIMITS, OUTPUT_KEYS, check_config, check_out, check_writable,
                                committed_folder)
+from replication.interrupts import interruptible
 from replication.progress import mode_for
 from replication.provenance import run_provenance
 from replication.results import (package_versions, read_result_or_none, to_jsonable,
@@ -103,10 +104,6 @@ def folder_name(text):
 
 if not OmegaConf.has_resolver("folder_name"):
     OmegaConf.register_new_resolver("folder_name", folder_name)
-
-
-class Interrupted(KeyboardInterrupt):
-    """Ctrl-C (SIGINT) or SIGTERM during a run."""
 
 
 def available_experiments():
@@ -1303,59 +1300,56 @@ def main():
     if unknown:
         _error(unknown)
 
-    def terminate(signum, frame):
-        raise Interrupted()
-
-    previous = signal.signal(signal.SIGTERM, terminate)
     chain, sweep_dir, folders = [], None, []
-    try:
-        flags = [arg for arg in args if arg.startswith("-")]
-        inspect = _inspecting(known)
-        if inspect is not None:
-            # --cfg, --info, --resolve, --package: Hydra's refusals as one line too
-            try:
-                _compose_check(inspect)
-            except InputError as error:
-                _error(error)
-        elif flags and set(flags) <= {"-m", "--multirun"}:
-            # a sweep: Hydra's refusals (unknown key or experiment) as one line; each job
-            # checks its own config
-            try:
-                folders, sweep_dir = compose_first_job([arg for arg in args
-                                                        if arg not in flags])
-            except InputError as error:
-                _error(error)
-            chain = _start_sweep(sweep_dir)
-        if set(flags) <= {"-r", "--run"}:
-            # a single run: refuse bad config before Hydra creates the run folder
-            try:
-                out = precheck([arg for arg in args if arg not in flags])
-            except InputError as error:
-                _error(error)
-            except OSError as error:
-                _error(_os_message(error))
-            chain = _missing_chain(out)
+    # SIGTERM raises Interrupted like Ctrl-C; one that lands in an import is not lost
+    with interruptible(terminate=True):
         try:
-            _hydra_main()
-        except SystemExit as done:
-            if done.code not in (0, None):
-                _remove_empty(chain)
-            raise
-        finally:
+            flags = [arg for arg in args if arg.startswith("-")]
+            inspect = _inspecting(known)
+            if inspect is not None:
+                # --cfg, --info, --resolve, --package: Hydra's refusals as one line too
+                try:
+                    _compose_check(inspect)
+                except InputError as error:
+                    _error(error)
+            elif flags and set(flags) <= {"-m", "--multirun"}:
+                # a sweep: Hydra's refusals (unknown key or experiment) as one line; each job
+                # checks its own config
+                try:
+                    folders, sweep_dir = compose_first_job([arg for arg in args
+                                                            if arg not in flags])
+                except InputError as error:
+                    _error(error)
+                chain = _start_sweep(sweep_dir)
+            if set(flags) <= {"-r", "--run"}:
+                # a single run: refuse bad config before Hydra creates the run folder
+                try:
+                    out = precheck([arg for arg in args if arg not in flags])
+                except InputError as error:
+                    _error(error)
+                except OSError as error:
+                    _error(_os_message(error))
+                chain = _missing_chain(out)
+            try:
+                _hydra_main()
+            except SystemExit as done:
+                if done.code not in (0, None):
+                    _remove_empty(chain)
+                raise
+            finally:
+                if sweep_dir is not None:
+                    _place_sweep_record(folders, sweep_dir,
+                                        [arg for arg in args if not arg.startswith("-")
+                                         and not arg.lstrip("+~").startswith("hydra")])
             if sweep_dir is not None:
-                _place_sweep_record(folders, sweep_dir,
-                                    [arg for arg in args if not arg.startswith("-")
-                                     and not arg.lstrip("+~").startswith("hydra")])
-        if sweep_dir is not None:
-            _report_refused(chain)
-    except KeyboardInterrupt:
-        for folder in folders:
-            _drop_partial_jobs(folder)
-        _remove_empty(chain)
-        _interrupted(sweep=sweep_dir is not None)
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-        os.environ.pop(SWEEP_ENVIRONMENT, None)
+                _report_refused(chain)
+        except KeyboardInterrupt:
+            for folder in folders:
+                _drop_partial_jobs(folder)
+            _remove_empty(chain)
+            _interrupted(sweep=sweep_dir is not None)
+        finally:
+            os.environ.pop(SWEEP_ENVIRONMENT, None)
 
 
 def _inspecting(known):

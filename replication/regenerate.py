@@ -33,6 +33,7 @@ from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
 from replication.errors import InputError, one_line_error
+from replication.interrupts import interruptible
 from replication.machine import reference_seconds
 from replication.progress import ENVIRONMENT, MODES, bar, check_environment, mode_for
 from replication.provenance import PROJECT_ROOT, inputs_hash, run_provenance
@@ -393,7 +394,8 @@ def _seconds(seconds):
 def main(argv=None):
     """Regenerate results (cached), figures and REPORT.md."""
     try:
-        return _main(argv)
+        with interruptible():  # a Ctrl-C that lands in an import is not lost
+            return _main(argv)
     except KeyboardInterrupt:  # the experiments running got Ctrl-C too and wrote nothing
         print("error: interrupted; finished experiments keep their results, the next run "
               "redoes the others", file=sys.stderr)

@@ -78,6 +78,19 @@ def rounding_step(values, smallest):
     return step
 
 
+def first_few(items, n=8):
+    """``"a, b, c"``, or the first ``n`` items then ``", ..."``: how a warning names the
+    frames or particles it is about.
+
+    Parameters
+    ----------
+    items : sequence
+        Each written with ``str``.
+    n : int
+    """
+    return ", ".join(str(item) for item in items[:n]) + (", ..." if len(items) > n else "")
+
+
 def describe_repeats(frames):
     """The start of every repeated-frames warning: ``"N frame(s) (a, b, ...) repeat the
     frame before to the last bit"``, the first 8 frames named.
@@ -87,5 +100,4 @@ def describe_repeats(frames):
     frames : sequence of int
         What :func:`repeated_frames` returned (not empty).
     """
-    shown = ", ".join(str(f) for f in frames[:8]) + (", ..." if len(frames) > 8 else "")
-    return f"{len(frames)} frame(s) ({shown}) repeat the frame before to the last bit"
+    return f"{len(frames)} frame(s) ({first_few(frames)}) repeat the frame before to the last bit"

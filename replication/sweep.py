@@ -31,6 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
+from replication.interrupts import interruptible
+
 SKIP = {"config", "versions", "overrides"}
 PREFIX = "override."
 SEED = PREFIX + "seed"
@@ -555,7 +557,8 @@ def write_plots(rows, metrics, x, folder):
 def main(argv=None):
     """Write the tidy CSV of a sweep folder (default: SWEEP_DIR/results.csv) and its plots."""
     try:
-        return _main(argv)
+        with interruptible():  # a Ctrl-C that lands in an import is not lost
+            return _main(argv)
     except OSError as error:
         where = f"{error.filename}: " if error.filename else ""
         print(f"error: {where}{error.strerror or error}", file=sys.stderr)

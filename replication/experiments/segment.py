@@ -120,16 +120,16 @@ def score_objects(objects, labels, truth, *, centre_px=2.0, iou_min=0.7):
     rows, best_of = [], {}
     for item in truth["objects"]:
         true_mask = labels == item["label"]
-        best, best_iou = None, 0.0
+        best_iou = 0.0
         for index, found in enumerate(objects):
             union = np.count_nonzero(true_mask | found["mask"])
             iou = np.count_nonzero(true_mask & found["mask"]) / union if union else 0.0
             if iou > best_iou:
-                best, best_iou = found, iou
-                best_of[item["label"]] = index
+                best_of[item["label"]], best_iou = index, iou
         row = {"label": item["label"], "iou": float(best_iou), "centre_px": None,
                "omega_pct": None, "found": False}
-        if best is not None:
+        if item["label"] in best_of:
+            best = objects[best_of[item["label"]]]
             row["centre_px"] = float(np.hypot(best["xi"] - item["xi"], best["eta"] - item["eta"]))
             if item["omega"] != 0:
                 row["omega_pct"] = float(100 * (best["omega"] - item["omega"])

@@ -10,6 +10,7 @@ arrays, same bytes).
 
 from __future__ import annotations
 
+import contextvars
 import json
 import logging
 import re
@@ -72,13 +73,16 @@ def _luminance(path, image):
     return image
 
 
-_NOTES = []   # the notes of the sequence being read (read_sequence keeps them)
+# the notes of the sequence being read in this thread (read_sequence keeps them)
+_NOTES = contextvars.ContextVar("notes", default=None)
 
 
 def _note(path, text):
     """A remark on input that is read but not exact (lossy compression), on stderr; kept
     for the :class:`Sequence` being read."""
-    _NOTES.append(f"{path}: {text}")
+    notes = _NOTES.get()
+    if notes is not None:
+        notes.append(f"{path}: {text}")
     print(f"note: {path}: {text}", file=sys.stderr, flush=True)
 
 
@@ -478,28 +482,32 @@ def read_sequence(path):
         raise InputError(f"{path}: no such file or folder; expected {expected}")
     suffix = path.suffix.lower()
     labels = truth = None
-    _NOTES.clear()
-    if path.is_dir():
-        frames, labels, truth = _read_folder(path)
-    elif suffix == ".npz":
-        frames, labels, truth = _read_npz(path)
-    elif suffix in TIFF_SUFFIXES:
-        frames = _read_tiff_stack(path)
-    elif suffix == ".gif":
-        frames = _read_gif(path)
-    elif suffix in VIDEO_SUFFIXES:
-        frames = _read_video(path)
-    elif suffix in FRAME_SUFFIXES:
-        raise InputError(f"{path}: a single image; expected {expected}: put the frames in "
-                         "one folder, named in time order")
-    else:
-        raise InputError(f"{path}: unsupported file type '{path.suffix}'; expected "
-                         f"{expected}")
-    _check_frames(path, frames)
-    if labels is not None and labels.shape != frames.shape:
-        _fail(path, "labels", f"shape {labels.shape}", f"the frames' shape {frames.shape}")
-    return Sequence(frames=frames, labels=labels, truth=truth, source=str(path),
-                    notes=tuple(_NOTES))
+    notes = []
+    token = _NOTES.set(notes)
+    try:
+        if path.is_dir():
+            frames, labels, truth = _read_folder(path)
+        elif suffix == ".npz":
+            frames, labels, truth = _read_npz(path)
+        elif suffix in TIFF_SUFFIXES:
+            frames = _read_tiff_stack(path)
+        elif suffix == ".gif":
+            frames = _read_gif(path)
+        elif suffix in VIDEO_SUFFIXES:
+            frames = _read_video(path)
+        elif suffix in FRAME_SUFFIXES:
+            raise InputError(f"{path}: a single image; expected {expected}: put the frames in "
+                             "one folder, named in time order")
+        else:
+            raise InputError(f"{path}: unsupported file type '{path.suffix}'; expected "
+                             f"{expected}")
+        _check_frames(path, frames)
+        if labels is not None and labels.shape != frames.shape:
+            _fail(path, "labels", f"shape {labels.shape}", f"the frames' shape {frames.shape}")
+        return Sequence(frames=frames, labels=labels, truth=truth, source=str(path),
+                        notes=tuple(notes))
+    finally:
+        _NOTES.reset(token)
 
 
 def read_manifest_sequences(path, maker):

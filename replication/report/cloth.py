@@ -57,18 +57,16 @@ def reconstruction_section(result):
                      f"{fmt(row['final_error_h'], 3)} |")
     png, gif = result["figures"]
     rows = result["reconstructions"]
-    if len(rows) >= 2:
-        lines += ["", "The paper puts the two at an error per frame of about 1/20 of the "
-                  f"springs' natural length (cost {fmt(rows[0]['paper_cost'], 3)}) and about "
-                  "1/2 of the structural springs' length (cost "
-                  f"{fmt(rows[1]['paper_cost'], 3)}), through its own cost's normalisation, "
-                  "which it does not give; the errors here are those of the whole "
-                  "re-simulated run, so only the contrast (close to the original against "
-                  "visibly wrong) is compared."]
-    lines += ["", f"![Fig. 11]({png})", "", f"Animated: [{gif}]({gif})"]
-    summary = []
+    contrast, summary = [], []
     if len(rows) >= 2:
         good, bad = rows[0], rows[1]
+        contrast = ["", "The paper puts the two at an error per frame of about 1/20 of the "
+                    f"springs' natural length (cost {fmt(good['paper_cost'], 3)}) and about "
+                    "1/2 of the structural springs' length (cost "
+                    f"{fmt(bad['paper_cost'], 3)}), through its own cost's normalisation, "
+                    "which it does not give; the errors here are those of the whole "
+                    "re-simulated run, so only the contrast (close to the original against "
+                    "visibly wrong) is compared."]
         ratio = bad["rms_error_h"] / good["rms_error_h"]
         limit = result["config"]["visible_error_h"]
         verdict = ("replicated" if good["rms_error_h"] < limit < bad["rms_error_h"]
@@ -79,6 +77,7 @@ def reconstruction_section(result):
             "(about 1/2)",
             f"RMS error {fmt(good['rms_error_h'], 2)} h vs. {fmt(bad['rms_error_h'], 2)} h "
             f"({fmt(ratio, 2)}x)", f"good < {fmt(limit)} h < trapped", verdict))
+    lines += [*contrast, "", f"![Fig. 11]({png})", "", f"Animated: [{gif}]({gif})"]
     return Section("\n".join(lines), summary)
 
 

@@ -25,7 +25,7 @@ from replication.cloth.noise import (
 )
 from replication.errors import InputError, check
 from replication.optim.objective import Objective
-from replication.sequences import (describe_repeats, repeated_frames, rounding_step,
+from replication.sequences import (describe_repeats, first_few, repeated_frames, rounding_step,
                                    still_points)
 
 MODELS = ("5", "18")
@@ -452,8 +452,7 @@ def unlisted_pins_warning(particles):
     there."""
     if not particles:
         return None
-    shown = ", ".join(f"({i}, {j})" for i, j in particles[:8]) \
-        + (", ..." if len(particles) > 8 else "")
+    shown = first_few([f"({i}, {j})" for i, j in particles])
     return (f"{len(particles)} free particle(s) ({shown}) never move, to the last bit, "
             "while the cloth moves: pins the file's 'pinned' does not list? The model "
             "moves every free particle, so each such pin reads as a misfit or as an effect "

@@ -53,7 +53,9 @@ def motion_outside_warnings(found):
     """A warning when moving parts of the frame lie outside the region of the rotation
     found (:func:`replication.motion.coverage.uncovered_motion`, on the voting pixels and
     the refinement's region, both on the pyramid's top level with a pyramid): the sequence
-    holds another motion, which one rotation does not explain.
+    holds another motion, which one rotation does not explain; and when no part of the
+    frame moves (a still scene with sensor noise gave a confident omega, warned only by a
+    refinement on 0 pixels).
 
     Parameters
     ----------
@@ -63,7 +65,13 @@ def motion_outside_warnings(found):
     """
     region = found["region"]
     uncovered = coverage.uncovered_motion(region.shape, found["pixels"], [region], MOVING_FLOW)
-    if uncovered is None or not uncovered["warned"]:
+    if uncovered is None:
+        return [f"no block of {coverage.BLOCK} x {coverage.BLOCK} px moves (in none do "
+                f"{100 * coverage.BLOCK_MOVING:.0f}% of the selected pixels have a normal "
+                f"flow of {MOVING_FLOW} "
+                "px/frame or more): a still scene or noise only, about which the answer "
+                "means nothing, or a rotation too slow to move any part that far"]
+    if not uncovered["warned"]:
         return []
     block = coverage.BLOCK
     return [f"{100 * uncovered['share']:.0f}% of the moving blocks of {block} x {block} px "

@@ -4,7 +4,8 @@ The paper's accumulation casts one vote per accumulator column for every pixel a
 omega, so its cost grows with the cube of the frame side. The pyramid method
 (``method.accumulation: pyramid`` of ``motion_single``, :func:`replication.motion.single.
 pyramid_rotation`) runs it on a reduced copy of the frames whose side is at most
-``coarse_side`` (the accumulator no longer grows with the frames), then refines the answer
+``coarse_side`` (a wide, short frame keeps a shorter side of at least ``coarse_side // 2``:
+:func:`top_shape`; the accumulator no longer grows with the frames), then refines the answer
 level by level up to the full resolution with the warping refinement of
 :func:`replication.motion.irc.refine` written on a fixed number of sampled pixels, so that
 the work at full resolution is a few filters of the frames (linear in their pixels) plus a
@@ -59,13 +60,15 @@ def reduce(frames):
 
 def levels(frames, coarse_side):
     """The pyramid: level 0 (the input) down to the first level whose sides are both at most
-    ``coarse_side`` pixels.
+    ``coarse_side`` pixels, or whose shorter side would fall under ``coarse_side // 2``
+    (:func:`top_shape`).
 
     Parameters
     ----------
     frames : (T, H, W) ndarray
     coarse_side : int
-        Largest side of the top level, pixels.
+        Largest side of the top level, pixels (unless its shorter side would be under
+        half of it).
 
     Returns
     -------
@@ -81,7 +84,10 @@ def levels(frames, coarse_side):
 
 def top_shape(shape, coarse_side):
     """``(H, W)`` of the top level :func:`levels` builds for frames of ``shape``: halved
-    (:func:`reduce`) until both sides are at most ``coarse_side``, or a side under 4.
+    (:func:`reduce`) until both sides are at most ``coarse_side``, but never to a shorter
+    side under ``coarse_side // 2`` (nor under 2). Wide, short frames (88 x 954) keep
+    enough rows to vote on: halving until the longer side fits left 22 x 239, on which
+    the best peak was hundreds of pixels off where the exact accumulation was right.
 
     Parameters
     ----------
@@ -89,7 +95,8 @@ def top_shape(shape, coarse_side):
     coarse_side : int
     """
     height, width = shape
-    while max(height, width) > coarse_side and min(height, width) >= 4:
+    floor = max(coarse_side // 2, 2)
+    while max(height, width) > coarse_side and min(height, width) // 2 >= floor:
         height, width = height // 2, width // 2
     return height, width
 

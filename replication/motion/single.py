@@ -180,7 +180,9 @@ def pyramid_rotation(frames, settings):
     """Coarse to fine: the paper's accumulation and refinement on the top level of a
     pyramid, then the sampled refinement on every finer level (beyond the paper).
 
-    The top level is the first whose sides are at most ``coarse_side`` pixels, so the
+    The top level is the first whose sides are at most ``coarse_side`` pixels (or whose
+    shorter side would next fall under ``coarse_side // 2``:
+    :func:`replication.motion.pyramid.top_shape`), so the
     accumulator and the number of voting pixels do not grow with the frames; ``cell`` is in
     pixels of that level, ``margin`` in input pixels (divided by the level's factor).
     Frames no larger than ``coarse_side`` give exactly the ``exact`` method's answer.

@@ -153,3 +153,24 @@ def test_two_regions_turning_opposite_ways_are_warned_by_motion_single():
     warned = motion_outside_warnings(single.find_rotation(both, settings))
     assert len(warned) == 1 and "lie outside the region of the rotation found" in warned[0]
     assert motion_outside_warnings(single.find_rotation(one, settings)) == []
+
+
+def test_a_still_scene_with_sensor_noise_is_warned_by_motion_single():
+    """An outside user's still texture with 3/255 sensor noise: motion_single answered
+    omega = -0.046, warned only by a refinement on 0 pixels. That no block moves is said
+    now (segment_multi said it already); a slow rotation that moves blocks is not."""
+    from scipy import ndimage
+
+    from replication.experiments.motion_single import motion_outside_warnings
+    from replication.motion import single
+
+    rng = np.random.default_rng(11)
+    texture = ndimage.gaussian_filter(rng.random((128, 128)), 2.0)
+    texture = (texture - texture.min()) / np.ptp(texture)
+    still = np.array([texture + rng.normal(0, 3 / 255, texture.shape) for _ in range(3)])
+    settings = single.settings_from(None)
+    warned = motion_outside_warnings(single.find_rotation(still, settings))
+    assert len(warned) == 1 and warned[0].startswith("no block of 16 x 16 px moves")
+    turning = np.array([ndimage.rotate(texture, np.degrees(0.01 * t), reshape=False, order=3,
+                                       mode="nearest") for t in range(3)])
+    assert motion_outside_warnings(single.find_rotation(turning, settings)) == []

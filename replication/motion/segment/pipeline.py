@@ -406,7 +406,8 @@ def search_discs(data, settings, rng):
 
 def segment_pyramid(frames, settings, rng):
     """Coarse to fine (beyond the paper): :func:`segment` on the top level of a pyramid
-    (:func:`replication.motion.pyramid.levels`, sides of at most ``pyramid.coarse_side``),
+    (:func:`replication.motion.pyramid.levels`, sides of at most ``pyramid.coarse_side``
+    unless the shorter one would fall under half of it),
     then each object's rotation refined on every finer level up to the input
     (:func:`replication.motion.pyramid.refine_levels`, from its mask eroded by ``3 sigma``)
     and its mask carried to the input's pixels (nearest top-level pixel).

@@ -109,6 +109,7 @@ def _profile_side(size):
 def _mass_physical(theta, base, *, threshold=0.1):
     n = _profile_side(len(theta))
     relative = mass_map(theta, n)
+    inverse = 1.0 + profile_indicators(n) @ np.asarray(theta, dtype=float)
     rows = relative.mean(axis=1)
     cols = relative.mean(axis=0)
     return {"relative_mass": relative.round(4).tolist(),
@@ -118,7 +119,9 @@ def _mass_physical(theta, base, *, threshold=0.1):
                                                                          - 1) > threshold)],
             "where": f"rows and columns whose mean relative mass differs from the median by "
                      f"more than {threshold:.0%} (mass relative to the file's, up to a common "
-                     "factor that is not identifiable apart from K)"}
+                     "factor that is not identifiable apart from K)",
+            # no mass: 1 + row(i) + col(j) <= 0 (relative_mass shows 1e6 there)
+            "nonpositive_inverse_mass": int(np.count_nonzero(inverse <= 0.0))}
 
 
 class Effect(NamedTuple):

@@ -539,8 +539,8 @@ def _warnings(data, base_fit, located, named_effects, gap_before, gap_after, lim
     """Lines a user should read before the verdict: frames that show no cloth's motion, a
     base fit that cannot be right, a structure measured without the constraint mask, a
     final model that does not predict the held-out frames, named effects that shrink the
-    held-out gap little, an anisotropic stiffness without anisotropy, a body force that
-    looks like a unit or time-step mistake."""
+    held-out gap little, an anisotropic stiffness without anisotropy, a mass profile with
+    no positive mass somewhere, a body force that looks like a unit or time-step mistake."""
     warnings = []
     positions = data.trajectory.positions
     for first in (repeated_frames_warning(repeated_frames(positions),
@@ -572,7 +572,9 @@ def _warnings(data, base_fit, located, named_effects, gap_before, gap_after, lim
     if odd:
         warnings.append("the base model does not fit these data plausibly ("
                         + "; ".join(odd) + "): check the file (units, dt, frame order, "
-                        "velocities) before reading the verdict")
+                        "velocities) before reading the verdict; a valid file can get such a "
+                        "fit too, when it ends in a wrong valley (a soft or weakly damped "
+                        "cloth), and the verdict then describes the broken fit")
     if generalises is not None and generalises["ratio"] > HELD_OUT_EXCESS:
         g = generalises
         line = (f"the final model's one-step residuals on the held-out frames are "
@@ -622,6 +624,13 @@ def _warnings(data, base_fit, located, named_effects, gap_before, gap_after, lim
             "present unnamed (REPORT.md, 'tested blind on outside data', shows how often "
             "effects below the limit are named)")
     for effect in named_effects:
+        negative = effect["parameters"].get("nonpositive_inverse_mass", 0)
+        if effect["name"] == "nonuniform_mass" and negative:
+            warnings.append(
+                f"nonuniform_mass is named with an inverse mass 1 + row(i) + col(j) of 0 or "
+                f"less at {negative} of {data.trajectory.n ** 2} particles: no mass "
+                "profile gives that, so the name describes the residuals, not the cloth "
+                "(noise, a base fit in a wrong valley, or an effect outside the library)")
         if effect["name"] == "anisotropic_stiffness" and _no_anisotropy(effect["parameters"]):
             warnings.append(
                 "anisotropic_stiffness is named with equal stiffness along j and i (ratio "

@@ -95,6 +95,33 @@ def test_an_implausible_base_fit_a_small_gap_shrink_and_a_huge_body_force_are_wa
                      2.0, 1.0) == []
 
 
+def test_a_mass_profile_with_no_positive_mass_somewhere_is_warned(clean_trajectory):
+    """An outside user's noisy effect-free cloth got nonuniform_mass, 'strong', with an
+    inverse mass 1 + row(i) + col(j) below 0 at 77 particles, and only a 'tentative'
+    warning. The count is part of the effect's parameters, and a non-zero one is warned."""
+    from replication.cloth import regression
+    from replication.discrepancy import effects
+    from replication.discrepancy.workflow import _warnings
+
+    n = clean_trajectory.n
+    theta = np.zeros(2 * (n - 1))
+    assert effects.LIBRARY["nonuniform_mass"].physical(theta, {})[
+        "nonpositive_inverse_mass"] == 0
+    theta[0] = -1.5   # row 0: inverse mass 1 - 1.5 (1 - 1/n) < 0; other rows 1 + 1.5 / n
+    physical = effects.LIBRARY["nonuniform_mass"].physical(theta, {})
+    assert physical["nonpositive_inverse_mass"] == n
+    data = regression.prepare(clean_trajectory)
+    fit = regression.fit(data, np.arange(5, 90, 5))
+    named = {"name": "nonuniform_mass", "parameters": physical}
+    assert _warnings(data, fit, {"mask_dropped": False}, [named], 2.0, 1.0) == [
+        f"nonuniform_mass is named with an inverse mass 1 + row(i) + col(j) of 0 or less at "
+        f"{n} of {n * n} particles: no mass profile gives that, so the name describes the "
+        "residuals, not the cloth (noise, a base fit in a wrong valley, or an effect outside "
+        "the library)"]
+    named["parameters"] = effects.LIBRARY["nonuniform_mass"].physical(theta / 3, {})
+    assert _warnings(data, fit, {"mask_dropped": False}, [named], 2.0, 1.0) == []
+
+
 def test_the_detection_limit_follows_the_noise_and_is_mentioned_when_nothing_is_named(
         clean_trajectory):
     from replication.cloth import regression

@@ -86,7 +86,7 @@ def top_shape(shape, coarse_side):
     """``(H, W)`` of the top level :func:`levels` builds for frames of ``shape``: halved
     (:func:`reduce`) until both sides are at most ``coarse_side``, but never to a shorter
     side under ``coarse_side // 2`` (nor under 2). Wide, short frames (88 x 954) keep
-    enough rows to vote on: halving until the longer side fits left 22 x 239, on which
+    enough rows to vote on: halving until the longer side fits left 22 x 238, on which
     the best peak was hundreds of pixels off where the exact accumulation was right.
 
     Parameters

@@ -188,7 +188,7 @@ def test_top_shape_is_the_shape_of_the_top_level_and_a_small_one_is_refused():
 
 def test_wide_short_frames_keep_half_of_coarse_side_on_the_top_level():
     """An outside user's 88 x 954 and 166 x 817 frames were halved until the longer side
-    fitted 256 (22 x 239, 41 x 204): the pyramid's centre was 813 and 132 px off where the
+    fitted 256 (22 x 238, 41 x 204): the pyramid's centre was 813 and 132 px off where the
     exact accumulation was within 0.4 px. Halving now stops before the shorter side falls
     under coarse_side // 2; square frames are reduced as before."""
     assert pyramid.top_shape((88, 954), 256) == (88, 954)

@@ -95,10 +95,10 @@ def _anisotropy_physical(theta, base):
             "where": "springs along j (types 0, 4) vs along i (types 1, 5)"}
 
 
-def mass_map(theta, n):
-    """Relative mass ``m_p / m`` per particle, (n, n), from the profile coefficients."""
-    inverse = 1.0 + profile_indicators(n) @ np.asarray(theta, dtype=float)
-    return (1.0 / np.maximum(inverse, 1e-6)).reshape(n, n)
+def inverse_mass_map(theta, n):
+    """Relative inverse mass ``m / m_p = 1 + row(i) + col(j)`` per particle, (n, n), from
+    the profile coefficients (0 or less: no mass gives it)."""
+    return (1.0 + profile_indicators(n) @ np.asarray(theta, dtype=float)).reshape(n, n)
 
 
 def _profile_side(size):
@@ -108,8 +108,8 @@ def _profile_side(size):
 
 def _mass_physical(theta, base, *, threshold=0.1):
     n = _profile_side(len(theta))
-    relative = mass_map(theta, n)
-    inverse = 1.0 + profile_indicators(n) @ np.asarray(theta, dtype=float)
+    inverse = inverse_mass_map(theta, n)
+    relative = 1.0 / np.maximum(inverse, 1e-6)   # m_p / m
     rows = relative.mean(axis=1)
     cols = relative.mean(axis=0)
     return {"relative_mass": relative.round(4).tolist(),

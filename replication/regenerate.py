@@ -138,6 +138,24 @@ def expected_seconds(results, cache, names):
     return expected
 
 
+def with_dependencies(names, blocks):
+    """``names`` and every experiment they depend on, directly or not (``depends_on``).
+
+    Parameters
+    ----------
+    names : iterable of str
+    blocks : dict
+        ``{name: report block}``.
+    """
+    needed, pending = set(), list(names)
+    while pending:
+        name = pending.pop()
+        if name not in needed:
+            needed.add(name)
+            pending.extend(blocks.get(name, {}).get("depends_on", []))
+    return needed
+
+
 def stale_experiments(entries, results, provenance, keys, cache, *, force=False, cascade=True):
     """Names of the experiments to recompute.
 
@@ -470,9 +488,14 @@ def _main(argv=None):
     # the machine's speed now (replication/machine.py), outside the run's timed seconds
     reference = None if args.dry_run else reference_seconds()
     start = time.perf_counter()
-    configs = resolved_configs(list(blocks))
-    provenance, keys = experiment_keys(entries, configs)
     gathered = [name for _, name, block in entries if block.get("gather")]
+    # with --only, the named experiments and those they depend on (their keys hold the
+    # dependencies' keys): composing and hashing all of them takes seconds each
+    if only:
+        needed = with_dependencies(only, blocks)
+        entries = [entry for entry in entries if entry[1] in needed]
+    configs = resolved_configs([name for _, name, _ in entries])
+    provenance, keys = experiment_keys(entries, configs)
     stale = stale_experiments(entries, results, provenance, keys, cache, force=args.force)
     by_themselves = stale_experiments(entries, results, provenance, keys, cache,
                                       force=args.force, cascade=False)

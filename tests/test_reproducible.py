@@ -30,8 +30,12 @@ VOLATILE = ("provenance", "versions", "config", "figure", "plots", "mask_file", 
 TIMING_WORDS = {"s", "second", "seconds", "wall", "speedup", "load"}
 OUTPUT_DIRS = ("figure_dir", "figures_dir", "data_dir")
 OUTPUT_FILES = ("figure", "manifest")
+REGENERATED = ("regenerated and compared file by file (sha256) with the committed data by "
+               "{}, a stronger check: its result.json echoes its config and those hashes")
 NOT_REPEATED = {
     "bench": "gathers the results of other experiments from results/ and runs nothing",
+    "motion_data": REGENERATED.format("tests/motion/test_synth.py"),
+    "motion_multi_data": REGENERATED.format("tests/motion/test_segment.py"),
 }
 
 

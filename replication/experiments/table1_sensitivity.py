@@ -316,8 +316,9 @@ def sensitivity_study(config, out):
                    and np.isclose(baseline["references"][k]["median_cost"], s["median_cost"],
                                   rtol=1e-12, atol=0)
                    for k, s in table1_2["success"].items() if k in baseline["references"])
-    figures = [figure.plot(axes, labels, goal=goal, rtol=table1_2["success_rtol"],
-                           out_name=config["figure"], figure_dir=config["figure_dir"])]
+    figures = [] if not config.get("figure") else [
+        figure.plot(axes, labels, goal=goal, rtol=table1_2["success_rtol"],
+                    out_name=config["figure"], figure_dir=config["figure_dir"])]
     result = {
         **result,
         "axes": axes,

@@ -34,13 +34,24 @@ from replication.workers import process_pool, usable_workers
 
 
 def draw_specs(study, seed):
-    """The study's dataset specs, drawn from one generator seeded by ``seed``."""
+    """The study's dataset specs, drawn from one generator seeded by ``seed``: K and tau
+    uniform over their ranges (the generator's draw), or, with ``study.log_uniform``,
+    log-uniform (drawn after the generator's spec, from the same generator), which puts as
+    many datasets in each decade of a wide range."""
     rng = np.random.default_rng(seed)
     kinds = list(study.get("kinds") or og.KINDS)
-    return [og.draw_spec(rng, kinds=kinds, frames_range=tuple(study["frames_range"]),
-                         K_range=tuple(study["K_range"]), tau_range=tuple(study["tau_range"]),
-                         size_decades=tuple(study["size_decades"]))
-            for _ in range(int(study["n_datasets"]))]
+    specs = []
+    for _ in range(int(study["n_datasets"])):
+        spec = og.draw_spec(rng, kinds=kinds, frames_range=tuple(study["frames_range"]),
+                            K_range=tuple(study["K_range"]),
+                            tau_range=tuple(study["tau_range"]),
+                            size_decades=tuple(study["size_decades"]))
+        if study.get("log_uniform"):
+            for key in ("K", "tau"):
+                low, high = (float(v) for v in study[f"{key}_range"])
+                spec[key] = float(np.exp(rng.uniform(np.log(low), np.log(high))))
+        specs.append(spec)
+    return specs
 
 
 def _min_snr(truth):

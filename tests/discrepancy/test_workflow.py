@@ -266,6 +266,32 @@ def test_the_warned_detection_limit_is_the_outside_study_s():
     assert DETECTION_SNR == study["detection_snr"]
 
 
+def test_the_wide_outside_study_draws_k_and_tau_per_decade_and_the_narrow_one_as_before():
+    """discrepancy_outside_wide draws K and tau log-uniformly over the identification
+    bounds (as many soft and weakly damped cloths as stiff ones); without log_uniform the
+    draw is the generator's own, spec for spec."""
+    import yaml
+
+    from replication.experiments.discrepancy_outside import draw_specs
+    from replication.testdata import cloth_outside as og
+
+    narrow = yaml.safe_load(open("configs/experiment/discrepancy_outside.yaml"))["study"]
+    narrow = {**narrow, "n_datasets": 5}
+    rng = np.random.default_rng(3)
+    assert draw_specs(narrow, 3) == [
+        og.draw_spec(rng, kinds=list(og.KINDS), frames_range=tuple(narrow["frames_range"]),
+                     K_range=tuple(narrow["K_range"]), tau_range=tuple(narrow["tau_range"]),
+                     size_decades=tuple(narrow["size_decades"])) for _ in range(5)]
+    wide = {**narrow, "n_datasets": 300, "K_range": [0.1, 10.0], "tau_range": [0.01, 1.0],
+            "log_uniform": True}
+    specs = draw_specs(wide, 3)
+    K = np.array([s["K"] for s in specs])
+    tau = np.array([s["tau"] for s in specs])
+    assert K.min() >= 0.1 and K.max() <= 10.0 and tau.min() >= 0.01 and tau.max() <= 1.0
+    # a uniform draw puts 3% below 0.4 and below 0.04; log-uniform about 30%
+    assert 0.2 < np.mean(K < 0.4) < 0.4 and 0.2 < np.mean(tau < 0.04) < 0.4
+
+
 def test_a_base_misfit_without_structure_is_warned_when_nothing_is_named(clean_trajectory):
     """An outside user's reversed reference (and a noise-free 25 x 25 sheet whose base tau
     was 3e-4 off) got 'nothing missing' with no warning, their residuals 5e4 x the noise

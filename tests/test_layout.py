@@ -120,7 +120,8 @@ def test_a_figure_change_makes_only_the_experiments_that_draw_it_stale():
     from replication.provenance import CORE_MODULES, module_closure, runner_parts
 
     shared = {"__init__.py", "style.py", "cloth_common.py", "sensitivity.py", "growth.py",
-              "discrepancy_where.py", "cloth_baselines_ecdf.py"}
+              "discrepancy_where.py", "cloth_baselines_ecdf.py",
+              "discrepancy_outside.py"}   # the outside study and its wide variant
     users = {}
     for name, runner in _experiment_runners().items():
         _, roots = runner_parts(runner)

@@ -170,6 +170,24 @@ def _run_in_worker(args):
         return run_one(spec, config, folder)
 
 
+def check_cost_frames(config, study):
+    """Refuse a cost whose frames the shortest dataset does not hold, before any work: the
+    cost is built on a dataset of ``frames_range[0]`` frames (any kind of cost)."""
+    shortest = int(study["frames_range"][0])
+    spec = {"n_frames": shortest, "K": 4.0, "tau": 0.5, "noise_h": 0.0, "seed": 0,
+            "effects": []}
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "shortest.npz"
+        og.write_npz(path, og.make(spec))
+        try:
+            problem.cost_from_config(read_trajectory(path), config["cost"])
+        except InputError as error:
+            text = str(error).removeprefix(f"{path}: ")   # the file is only this check's
+            raise InputError(f"study.frames_range={list(study['frames_range'])}: the "
+                             f"shortest dataset ({shortest} frames) does not hold the cost: "
+                             f"{text}") from None
+
+
 def outside_identification(config, out):
     """``replicate experiment=cloth_identify_outside``: the blind study on outside data."""
     check_common(config)
@@ -177,10 +195,7 @@ def outside_identification(config, out):
     check_study(study)
     check(str(config["model"]) == "5", f"model={config['model']!r}: the generator's cloth "
           "has one stiffness and one tau; expected model=5")
-    check(int(study["frames_range"][0]) >= int(config["cost"]["frame"]) + 2
-          or config["cost"]["kind"] != "small",
-          f"study.frames_range={study['frames_range']}: the small cost's frame "
-          f"{config['cost']['frame']} needs at least {int(config['cost']['frame']) + 2} frames")
+    check_cost_frames(config, study)
     workers = int(study.get("workers") or 1)
     check(workers >= 1, f"study.workers={workers}: expected at least 1")
     methods = config.get("methods")
@@ -244,7 +259,7 @@ def _counts(rows):
         "success_rate": _share(rows, "success"),
         "n_failed": len(failed),
         "failed_warned": int(sum(r["warned"] for r in failed)),
-        "failed_silent": int(sum(not r["warned"] for r in failed)),
+        "failed_silent": int(sum(not r["warned"] and r["refused"] is None for r in failed)),
         "failed_truth_cheaper": int(sum(bool(r["truth_cheaper"]) for r in answered)),
         "failed_truth_outside_bounds": int(sum(r["truth_in_bounds"] is False
                                                for r in answered)),
@@ -257,8 +272,28 @@ def _counts(rows):
     }
 
 
+# bands of the true position noise (units of h), at the identifier's own warning levels
+NOISE_BANDS = ((0.0, problem.NOISE_WARN_H), (problem.NOISE_WARN_H, problem.NOISE_STRONG_H),
+               (problem.NOISE_STRONG_H, math.inf))
+
+
+def _by_regime(rows, regimes):
+    groups = [(regime["label"], float(regime["max_share"]), []) for regime in regimes]
+    for row in rows:
+        for _, high, members in groups:
+            if row["constraint_share"] <= high:
+                members.append(row)
+                break
+    lows = [0.0] + [high for _, high, _ in groups[:-1]]
+    return [{"label": label, "share_range": [low, high], **_counts(members)}
+            for low, (label, high, members) in zip(lows, groups)]
+
+
 def summarise(rows, regimes, rtol):
-    """Rates over the whole set, per regime of constraint activity, and for noise-free data.
+    """Rates over the whole set, for noise-free data, per band of position noise (the
+    identifier's warning levels), and per regime of constraint activity (over all data and
+    over the data under the first noise warning, so that noise and the constraint are told
+    apart).
 
     Parameters
     ----------
@@ -268,20 +303,16 @@ def summarise(rows, regimes, rtol):
         first regime whose ``max_share`` its constraint share does not exceed.
     rtol : float
     """
-    groups = [(regime["label"], float(regime["max_share"]), []) for regime in regimes]
-    for row in rows:
-        for _, high, members in groups:
-            if row["constraint_share"] <= high:
-                members.append(row)
-                break
-    lows = [0.0] + [high for _, high, _ in groups[:-1]]
-    noise_free = [r for r in rows if r["noise_h"] == 0.0]
+    quiet = [r for r in rows if r["noise_h"] < NOISE_BANDS[0][1]]
     return {
         "success_rtol": rtol,
         "all": _counts(rows),
-        "noise_free": _counts(noise_free),
-        "by_regime": [{"label": label, "share_range": [low, high], **_counts(members)}
-                      for low, (label, high, members) in zip(lows, groups)],
+        "noise_free": _counts([r for r in rows if r["noise_h"] == 0.0]),
+        "by_noise": [{"noise_h_range": [low, high if math.isfinite(high) else None],
+                      **_counts([r for r in rows if low <= r["noise_h"] < high])}
+                     for low, high in NOISE_BANDS],
+        "by_regime": _by_regime(rows, regimes),
+        "by_regime_quiet": _by_regime(quiet, regimes),
         "refused": int(sum(r["refused"] is not None for r in rows)),
         "wall_seconds_median": float(np.median([r["wall_seconds"] for r in rows])),
     }

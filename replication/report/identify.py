@@ -404,6 +404,14 @@ def _share_text(counts):
             f"({fmt(100 * counts['success_rate'], 3)}%)")
 
 
+def _band_label(band):
+    low, high = band["noise_h_range"]
+    if high is None:
+        return f"noise {fmt(low)} h or more"
+    return f"noise under {fmt(high)} h (0 included)" if low == 0 else \
+        f"noise {fmt(low)} to {fmt(high)} h"
+
+
 def outside_section(result):
     """The identifiers blind on outside data over the whole range of their bounds."""
     from replication.experiments.outside_identify import answers_of
@@ -412,6 +420,7 @@ def outside_section(result):
     study = cfg["study"]
     methods = list(result["summary"])
     first = result["summary"][methods[0]]
+    quiet_h = first["by_noise"][0]["noise_h_range"][1]
     tol = fmt(100 * first["success_rtol"])
     lines = [
         f"{first['all']['n']} datasets from `replication/testdata/cloth_outside.py` (an "
@@ -432,7 +441,9 @@ def outside_section(result):
     for method in methods:
         summary = result["summary"][method]
         groups = [("all", summary["all"]), ("noise exactly 0", summary["noise_free"])]
-        groups += [(regime["label"], regime) for regime in summary["by_regime"]]
+        groups += [(_band_label(band), band) for band in summary["by_noise"]]
+        groups += [(f"{regime['label']}, noise under {fmt(quiet_h)} h", regime)
+                   for regime in summary["by_regime_quiet"]]
         for label, counts in groups:
             rate = (f"{fmt(100 * counts['success_rate'], 3)}%"
                     if counts["success_rate"] is not None else "n/a")
@@ -442,11 +453,15 @@ def outside_section(result):
                          f"{counts['succeeded_warned']} |")
     lines += [
         "",
-        "\"Truth costs less\": the objective is lower at the generator's parameters than at "
-        "the answer, so the search missed a point the data did single out (an optimiser "
-        "failure, not data that cannot tell the parameters apart). The constraint regimes "
-        "use the share of free particle-steps the generator's own run had moved by the "
-        "deformation constraint.",
+        "\"Truth costs less\": the search stopped at a point its own objective rates worse "
+        "than the generator's parameters (on noisy data the truth is not the objective's "
+        "minimum, so this does not say the minimum is the truth). The noise bands are the "
+        f"identifier's own warning levels ({fmt(quiet_h)} h and "
+        f"{fmt(first['by_noise'][1]['noise_h_range'][1])} h of true noise): above the first, "
+        "`cloth_identify` warns that its answer is biased, so \"within 1%\" is not expected "
+        "there. The constraint regimes, counted on the data under the first noise level so "
+        "that noise and the constraint are told apart, use the share of free particle-steps "
+        "the generator's own run had moved by the deformation constraint.",
     ]
     rows = []
     for method in methods:
@@ -466,17 +481,21 @@ def outside_section(result):
                          f"{fmt(row['noise_h'], 2)} h, {row['n_frames']} frames, constraint "
                          f"share {fmt(100 * row['constraint_share'], 2)}%: "
                          + ", ".join(f"{name} {_pct(err)}" for name, err in errors.items()))
+        quiet = summary["by_noise"][0]
         rows.append(SummaryRow(
             f"Identification blind on outside data over the whole range of the bounds, "
             f"{method} (beyond the paper)", "n/a",
-            f"{_share_text(every)}; {every['failed_silent']} silent failure(s), the largest "
-            f"error of an unwarned answer {_abs_pct(worst)}",
-            f"all within {tol}%; every failure warned",
-            "beyond the paper" if every["n_failed"] == 0 else "not met"))
+            f"noise under {fmt(quiet_h)} h: {_share_text(quiet)}; all: {_share_text(every)}; "
+            f"{every['failed_silent']} silent failure(s), the largest error of an unwarned "
+            f"answer {_abs_pct(worst)}",
+            f"all within {tol}% under {fmt(quiet_h)} h of noise; every failure warned",
+            "beyond the paper" if quiet["n_failed"] == 0 and every["failed_silent"] == 0
+            else "not met"))
     if result.get("figure"):
         lines += ["", f"![identification on outside data]({result['figure']})"]
     lines += ["", "This measures the identifiers' known limits; they are not mended here. "
-              "Soft or weakly damped cloths, where the constraint moves most particles at "
+              "Position noise above the warning level biases every answer beyond 1%. Under "
+              "it, soft or weakly damped cloths, where the constraint moves most particles at "
               "most steps, leave the structured identifier's regression little to stand on, "
               "and the cost's valleys defeat the searches (docs/experiments.md, "
               "`cloth_identify`, Known limits)."]

@@ -16,9 +16,7 @@ definition) is a config value, stated with the rates above and below it.
 
 from __future__ import annotations
 
-import tempfile
 import time
-from concurrent.futures import as_completed
 from pathlib import Path
 
 import numpy as np
@@ -26,11 +24,11 @@ import numpy as np
 from replication.cloth.io import read_trajectory
 from replication.discrepancy.workflow import LIMIT_CAVEAT, analyse
 from replication.errors import InputError, check
+from replication.experiments.outside_runs import run_datasets
 from replication.progress import progress
 from replication.results import write_json_atomic
 from replication.sweep import cell_value
 from replication.testdata import cloth_outside as og
-from replication.workers import process_pool, usable_workers
 
 
 def draw_specs(study, seed):
@@ -101,12 +99,6 @@ def run_one(spec, settings, folder):
     }
 
 
-def _run_in_worker(args):
-    spec, settings = args
-    with tempfile.TemporaryDirectory() as folder:
-        return run_one(spec, settings, folder)
-
-
 def outside_study(config, out):
     """``replicate experiment=discrepancy_outside``: the blind study on outside data."""
     study = config["study"]
@@ -116,21 +108,7 @@ def outside_study(config, out):
     check(workers >= 1, f"study.workers={workers}: expected at least 1")
     specs = draw_specs(study, config["seed"])
     settings = config.get("discrepancy") or {}
-    rows = [None] * n_datasets
-    if usable_workers(workers, "datasets") == 1:
-        with tempfile.TemporaryDirectory() as folder:
-            for index, spec in enumerate(specs):
-                rows[index] = run_one(spec, settings, folder)
-                _report(index, n_datasets, rows[index])
-    else:
-        with process_pool(workers) as pool:
-            # one task per dataset, reported as each finishes; rows stay in spec order
-            futures = {pool.submit(_run_in_worker, (spec, settings)): index
-                       for index, spec in enumerate(specs)}
-            for done, future in enumerate(as_completed(futures)):
-                index = futures[future]
-                rows[index] = future.result()
-                _report(done, n_datasets, rows[index])
+    rows = run_datasets(run_one, specs, settings, workers=workers, report=_report)
     summary = summarise(rows, float(study["detection_snr"]))
     result = {"datasets": rows, "summary": summary}
     if config.get("manifest"):

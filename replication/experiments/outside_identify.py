@@ -26,7 +26,6 @@ from __future__ import annotations
 import math
 import tempfile
 import time
-from concurrent.futures import as_completed
 from pathlib import Path
 
 import numpy as np
@@ -38,9 +37,9 @@ from replication.errors import InputError, check
 from replication.experiments.identify import (_identification_result, _identify,
                                                method_settings)
 from replication.experiments.identify_common import check_common, run_rng
+from replication.experiments.outside_runs import run_datasets
 from replication.progress import progress
 from replication.testdata import cloth_outside as og
-from replication.workers import process_pool, usable_workers
 
 # the generator's rest lengths (its contract scene, no effect changes them): l01, l23, l45
 TRUE_REST = (og.H, og.H * math.sqrt(2.0), 2.0 * og.H)
@@ -164,12 +163,6 @@ def truth_cheaper(truth_cost, cost, *, rtol=1e-3, floor=1e-20):
     return bool(cost - truth_cost > max(rtol * cost, floor))
 
 
-def _run_in_worker(args):
-    spec, config = args
-    with tempfile.TemporaryDirectory() as folder:
-        return run_one(spec, config, folder)
-
-
 def check_cost_frames(config, study):
     """Refuse a cost whose frames the shortest dataset does not hold, before any work: the
     cost is built on a dataset of ``frames_range[0]`` frames (any kind of cost)."""
@@ -205,21 +198,7 @@ def outside_identification(config, out):
         method_settings(config, method)
     specs = draw_specs(study, config["seed"])
     run_config = {k: v for k, v in config.items() if k not in ("report", "study")}
-    n = len(specs)
-    rows = [None] * n
-    if usable_workers(workers, "datasets") == 1:
-        with tempfile.TemporaryDirectory() as folder:
-            for index, spec in enumerate(specs):
-                rows[index] = run_one(spec, run_config, folder)
-                _report(index, n, rows[index])
-    else:
-        with process_pool(workers) as pool:
-            futures = {pool.submit(_run_in_worker, (spec, run_config)): index
-                       for index, spec in enumerate(specs)}
-            for done, future in enumerate(as_completed(futures)):
-                index = futures[future]
-                rows[index] = future.result()
-                _report(done, n, rows[index])
+    rows = run_datasets(run_one, specs, run_config, workers=workers, report=_report)
     result = {"datasets": rows,
               "summary": {method: summarise(answers_of(rows, method), study["regimes"],
                                             config["success_rtol"])

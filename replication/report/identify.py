@@ -493,8 +493,14 @@ def outside_section(result):
             else "not met"))
     if result.get("figure"):
         lines += ["", f"![identification on outside data]({result['figure']})"]
+    noisy = {method: result["summary"][method]["by_noise"][1:]
+             for method in methods}
+    above = "; ".join(
+        f"{method} {sum(b['n'] - b['n_failed'] for b in bands)} of "
+        f"{sum(b['n'] for b in bands)}" for method, bands in noisy.items())
     lines += ["", "This measures the identifiers' known limits; they are not mended here. "
-              "Position noise above the warning level biases every answer beyond 1%. Under "
+              f"Above {fmt(quiet_h)} h of position noise the answers are biased (within "
+              f"{tol}%: {above}). Under "
               "it, soft or weakly damped cloths, where the constraint moves most particles at "
               "most steps, leave the structured identifier's regression little to stand on, "
               "and the cost's valleys defeat the searches (docs/experiments.md, "

@@ -27,6 +27,11 @@ Stages of :func:`fit`:
    least squares is biased; the instrument of frame ``t`` is the same regressors built
    from frames ``t-2`` and ``t+3``), ``tau`` search again.
 
+A fit whose rest lengths come out well below the recorded ones may be in the cost's wrong
+valley: the rounds are run again from other starts (by least quantile of squares, which
+finds the few particle-frames the constraint left alone, and stiffer ones), and the fit
+with the smallest one-step residuals is kept.
+
 When the constraint is active on nearly every particle-frame (nothing left to regress
 on), the fit falls back to least squares through the constraint: the one-step residuals
 of the compiled model are minimised over rest lengths, stiffness and ``tau``. A valid
@@ -62,6 +67,14 @@ SMOOTH_WINDOWS = (0, 31)
 # smallest one-step residuals is kept.
 VALLEY_REST = 0.9
 VALLEY_STIFFER = (2.0, 4.0, 8.0)
+# In the valley, starts by least quantile of squares are tried as well (see
+# consensus_start): the residual quantile it ranks elemental fits by, how many fits it draws
+# (from a generator of this seed: the same data give the same start) and the
+# Savitzky-Golay windows of the data versions it runs on (0: as recorded).
+CONSENSUS_QUANTILE = 0.05
+CONSENSUS_SAMPLES = 400
+CONSENSUS_SEED = 0
+CONSENSUS_WINDOWS = (0, 11, 31)
 
 
 class Data(NamedTuple):
@@ -556,6 +569,65 @@ def conservative_start(data, frames, plugins, model, *, tau=0.05, block=5):
     return _split(theta, plugins, _widths(data, plugins), model, BIG_TAU)
 
 
+def consensus_start(data, frames, plugins, model, *, quantile=CONSENSUS_QUANTILE,
+                    n_samples=CONSENSUS_SAMPLES, seed=CONSENSUS_SEED, max_frames=60):
+    """Stage 1 where the constraint moves most particle-frames: the 5-parameter base by
+    least quantile of squares, as (base with tau = BIG_TAU, terms at zero), or None.
+
+    The unconstrained step holds exactly on the particle-frames the constraint left alone,
+    however few they are, and on no others: trimming around a median (:func:`trimmed_start`)
+    fits the constrained majority instead when the constraint moves more than half of
+    them. Here ``n_samples`` fits of the base coefficients to two particle-frames drawn at
+    random are ranked by the ``quantile`` of all particle-frames' residual norms, and the
+    best one is refined by refits on the particle-frames within 3 times that quantile. On
+    noise-free data it finds the rest lengths and stiffness to round-off whenever more than
+    ``quantile`` of the particle-frames are unconstrained. Plug-in terms start at zero;
+    ``model="18"`` (12 base coefficients) gives None.
+    """
+    if model != "5":
+        return None
+    frames = usable_frames(frames, data.n_frames)
+    if frames.size > max_frames:
+        frames = frames[np.linspace(0, frames.size - 1, max_frames).round().astype(int)]
+    guess = BaseModel(typical_lengths(data), np.ones(N_TYPES), np.full(N_TYPES, BIG_TAU))
+    columns, _ = design(data, guess, (), model, frames)
+    m = columns.shape[-1]
+    A = columns[:, data.free].reshape(-1, 3, m)            # one (3, m) block per particle-frame
+    y = data.target[frames][:, data.free].reshape(-1, 3)
+    usable = np.all(np.isfinite(A), axis=(1, 2)) & np.all(np.isfinite(y), axis=1)
+    A, y = A[usable], y[usable]
+    if A.shape[0] < 2:
+        return None
+
+    def norms(theta):
+        return np.linalg.norm(np.einsum("nij,j->ni", A, theta) - y, axis=1)
+
+    rng = np.random.default_rng(seed)
+    best = None
+    for _ in range(n_samples):
+        pick = rng.choice(A.shape[0], 2, replace=False)
+        theta = np.linalg.lstsq(A[pick].reshape(-1, m), y[pick].reshape(-1), rcond=None)[0]
+        if not _valid(theta, model):
+            continue
+        score = float(np.quantile(norms(theta), quantile))
+        if best is None or score < best[0]:
+            best = (score, theta)
+    if best is None:
+        return None
+    theta = best[1]
+    for _ in range(10):
+        r = norms(theta)
+        keep = r <= max(3.0 * float(np.quantile(r, quantile)), 1e-300)
+        if keep.sum() * 3 < 2 * m:
+            break
+        theta = np.linalg.lstsq(A[keep].reshape(-1, m), y[keep].reshape(-1), rcond=None)[0]
+    if not _valid(theta, model):
+        return None
+    widths = _widths(data, plugins)
+    free_width = sum(w for p, w in zip(plugins, widths) if not p.needs_base)
+    return _split(np.r_[theta, np.zeros(free_width)], plugins, widths, model, BIG_TAU)
+
+
 def check_cloth(data, *, spread=2.0, tolerance=0.01):
     """Refuse positions that are not a cloth: more than ``tolerance`` of the structural
     spring-frames longer or shorter than ``spread`` times their type's median length."""
@@ -647,8 +719,11 @@ def _out_of_valley(data, frames, plugins, started, fitted, options):
     """``fitted``, or the rounds from a stiffer start when those end with smaller one-step
     residuals on ``frames``. A start that is too soft (noise and the constraint both bias
     a start's stiffness down) can lead the rounds into the wrong valley; the check runs
-    only when the rest lengths came out well below the recorded ones (:data:`VALLEY_REST`),
-    and tries the starts of :data:`VALLEY_STIFFER` in turn until one ends out of it.
+    only when the rest lengths came out well below the recorded ones (:data:`VALLEY_REST`).
+    It tries the rounds from :func:`consensus_start` on the data versions of
+    :data:`CONSENSUS_WINDOWS` (where the constraint moves most particle-frames, every
+    start by trimming fits the constrained ones), then the starts of :data:`VALLEY_STIFFER`
+    in turn until one ends out of the valley.
     """
     typical = VALLEY_REST * typical_lengths(data)
 
@@ -664,6 +739,13 @@ def _out_of_valley(data, frames, plugins, started, fitted, options):
         return fitted
     base, terms = started
     best, best_cost = fitted, cost(fitted)
+    for window in CONSENSUS_WINDOWS:
+        version = data if window == 0 else prepare(smoothed(data.trajectory, int(window)))
+        consensus = consensus_start(version, frames, plugins, options["model"])
+        other = None if consensus is None else _rounds(data, frames, plugins, consensus,
+                                                       **options)
+        if other is not None and cost(other) < best_cost:
+            best, best_cost = other, cost(other)
     for factor in VALLEY_STIFFER:
         other = _rounds(data, frames, plugins, (base._replace(k=base.k * factor), terms),
                         **options)

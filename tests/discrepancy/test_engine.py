@@ -85,6 +85,26 @@ def test_engine_leaves_the_wrong_valley_on_noisy_constrained_data(tmp_path, monk
     assert trapped.base.rest[0] < 0.9 * fitted.base.rest[0]
 
 
+def test_engine_is_exact_where_the_constraint_moves_most_particles(tmp_path, monkeypatch):
+    # weakly damped: the constraint moves 74 % of the free particle-steps, so every start
+    # by trimming fits the constrained majority and the rounds end in the valley (rest
+    # lengths -53 %, K -72 %, tau x26); the consensus start finds the unconstrained few
+    spec = {"n_frames": 300, "K": 2.0, "tau": 0.02, "noise_h": 0.0, "seed": 5,
+            "effects": []}
+    data = regression.prepare(_outside_trajectory(tmp_path, spec))
+    frames = np.arange(1, data.n_frames - 1, 5)
+    started = regression.consensus_start(data, frames, (), "5")
+    assert np.allclose(started[0].rest[[0, 2, 4]], [1.5 / 16, 1.5 / 16 * 2 ** 0.5, 3 / 16],
+                       rtol=1e-8)
+    assert abs(started[0].k[0] / spec["K"] - 1) < 1e-8
+    fitted = regression.fit(data, frames)
+    assert abs(fitted.base.k[0] / spec["K"] - 1) < 1e-8
+    assert abs(fitted.base.tau[0] / spec["tau"] - 1) < 1e-8
+    monkeypatch.setattr(regression, "CONSENSUS_WINDOWS", ())   # without it: the valley
+    trapped = regression.fit(data, frames)
+    assert abs(trapped.base.tau[0] / spec["tau"] - 1) > 1
+
+
 def test_spring_sums_of_all_frames_are_computed_once_and_read_only():
     data = regression.prepare(read_trajectory("synthetic_data/cloth/reference_tau0.1.npz"))
     base = regression.BaseModel(np.full(6, data.h), np.full(6, 4.0), np.full(6, 0.1))

@@ -41,6 +41,7 @@ trajectory is never refused.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 from functools import cached_property
 from typing import Callable, NamedTuple
 
@@ -71,10 +72,10 @@ VALLEY_STIFFER = (2.0, 4.0, 8.0)
 # consensus_start): the residual quantile it ranks elemental fits by, how many fits it draws
 # (from a generator of this seed: the same data give the same start) and the
 # Savitzky-Golay windows of the data versions it runs on (0: as recorded).
-CONSENSUS_QUANTILE = 0.05
+CONSENSUS_QUANTILES = (0.05, 0.1)
 CONSENSUS_SAMPLES = 400
 CONSENSUS_SEED = 0
-CONSENSUS_WINDOWS = (0, 11, 31)
+CONSENSUS_WINDOWS = (0, 7, 11, 31)
 
 
 class Data(NamedTuple):
@@ -569,7 +570,7 @@ def conservative_start(data, frames, plugins, model, *, tau=0.05, block=5):
     return _split(theta, plugins, _widths(data, plugins), model, BIG_TAU)
 
 
-def consensus_start(data, frames, plugins, model, *, quantile=CONSENSUS_QUANTILE,
+def consensus_start(data, frames, plugins, model, *, quantile=CONSENSUS_QUANTILES[0],
                     n_samples=CONSENSUS_SAMPLES, seed=CONSENSUS_SEED, max_frames=60):
     """Stage 1 where the constraint moves most particle-frames: the 5-parameter base by
     least quantile of squares, as (base with tau = BIG_TAU, terms at zero), or None.
@@ -583,6 +584,20 @@ def consensus_start(data, frames, plugins, model, *, quantile=CONSENSUS_QUANTILE
     noise-free data it finds the rest lengths and stiffness to round-off whenever more than
     ``quantile`` of the particle-frames are unconstrained. Plug-in terms start at zero;
     ``model="18"`` (12 base coefficients) gives None.
+
+    Parameters
+    ----------
+    data : Data
+    frames : (F,) int array_like
+        Training frames (at most ``max_frames`` of them, evenly spread, are used).
+    plugins : sequence of Plugin
+    model : {"5", "18"}
+    quantile : float
+        Share of the particle-frames the ranking reads (below the unconstrained share).
+    n_samples : int
+        Elemental fits drawn.
+    seed : int
+        Seed of the draws.
     """
     if model != "5":
         return None
@@ -620,9 +635,10 @@ def consensus_start(data, frames, plugins, model, *, quantile=CONSENSUS_QUANTILE
         keep = r <= max(3.0 * float(np.quantile(r, quantile)), 1e-300)
         if keep.sum() * 3 < 2 * m:
             break
-        theta = np.linalg.lstsq(A[keep].reshape(-1, m), y[keep].reshape(-1), rcond=None)[0]
-    if not _valid(theta, model):
-        return None
+        refit = np.linalg.lstsq(A[keep].reshape(-1, m), y[keep].reshape(-1), rcond=None)[0]
+        if not _valid(refit, model):
+            break
+        theta = refit
     widths = _widths(data, plugins)
     free_width = sum(w for p, w in zip(plugins, widths) if not p.needs_base)
     return _split(np.r_[theta, np.zeros(free_width)], plugins, widths, model, BIG_TAU)
@@ -675,16 +691,21 @@ def fit(data, frames, plugins=(), *, model="5", rounds=3, block=5,
     frames = usable_frames(frames, data.n_frames)
     if frames.size == 0:
         return fit_through_constraint(data, frames, plugins, model=model)
+    options = {"model": model, "rounds": rounds, "block": block,
+               "min_rows_per_coefficient": min_rows_per_coefficient}
     for make_start in (conservative_start, trimmed_starts):
         started = (make_start(data, frames, plugins, model) if make_start is conservative_start
                    else make_start(data, frames, plugins, model, smooth_windows))
         if started is None:
             continue
-        options = {"model": model, "rounds": rounds, "block": block,
-                   "min_rows_per_coefficient": min_rows_per_coefficient}
         fitted = _rounds(data, frames, plugins, started, **options)
         if fitted is not None:
             return _out_of_valley(data, frames, plugins, started, fitted, options)
+    # no round from those starts: the constraint may move most particle-frames
+    fitted = _from_starts(data, frames, plugins, options,
+                          _consensus_starts(data, frames, plugins, model))
+    if fitted is not None:
+        return fitted
     # nothing outside the constraint to regress on: fit through it
     return fit_through_constraint(data, frames, plugins, model=model)
 
@@ -715,48 +736,77 @@ def _rounds(data, frames, plugins, started, *, model, rounds, block,
     return best
 
 
-def _out_of_valley(data, frames, plugins, started, fitted, options):
-    """``fitted``, or the rounds from a stiffer start when those end with smaller one-step
-    residuals on ``frames``. A start that is too soft (noise and the constraint both bias
-    a start's stiffness down) can lead the rounds into the wrong valley; the check runs
-    only when the rest lengths came out well below the recorded ones (:data:`VALLEY_REST`).
-    It tries the rounds from :func:`consensus_start` on the data versions of
-    :data:`CONSENSUS_WINDOWS` (where the constraint moves most particle-frames, every
-    start by trimming fits the constrained ones), then the starts of :data:`VALLEY_STIFFER`
-    in turn until one ends out of the valley.
+def one_step_cost(data, candidate, frames):
+    """Sum of squared one-step residuals of a fit over ``frames`` (free particles; ``inf``
+    when not finite): what competing fits of one data set are ranked by.
+
+    Parameters
+    ----------
+    data : Data
+    candidate : Fit
+    frames : (F,) int array_like
     """
-    typical = VALLEY_REST * typical_lengths(data)
+    r = residuals(data, candidate.base, candidate.terms, frames)[:, data.free]
+    total = float(np.sum(r ** 2))
+    return total if np.isfinite(total) else np.inf
 
-    def in_valley(candidate):
-        return bool(np.any(candidate.base.rest < typical))
 
-    def cost(candidate):
-        r = residuals(data, candidate.base, candidate.terms, frames)[:, data.free]
-        total = float(np.sum(r ** 2))
-        return total if np.isfinite(total) else np.inf
+def in_valley(data, candidate):
+    """Whether a fit may be in the cost's wrong valley: a rest length below
+    :data:`VALLEY_REST` of its type's recorded length.
 
-    if not in_valley(fitted):
-        return fitted
-    base, terms = started
-    best, best_cost = fitted, cost(fitted)
+    Parameters
+    ----------
+    data : Data
+    candidate : Fit
+    """
+    return bool(np.any(candidate.base.rest < VALLEY_REST * typical_lengths(data)))
+
+
+def _consensus_starts(data, frames, plugins, model):
+    """The starts of :func:`consensus_start` on each data version of
+    :data:`CONSENSUS_WINDOWS`, with each quantile of :data:`CONSENSUS_QUANTILES` (lazily:
+    each version is smoothed only when its turn comes)."""
     for window in CONSENSUS_WINDOWS:
         version = data if window == 0 else prepare(smoothed(data.trajectory, int(window)))
-        consensus = consensus_start(version, frames, plugins, options["model"])
-        other = None if consensus is None else _rounds(data, frames, plugins, consensus,
-                                                       **options)
-        if other is not None and cost(other) < best_cost:
-            best, best_cost = other, cost(other)
-    for factor in VALLEY_STIFFER:
-        other = _rounds(data, frames, plugins, (base._replace(k=base.k * factor), terms),
-                        **options)
-        if other is None:
+        for quantile in CONSENSUS_QUANTILES:
+            yield consensus_start(version, frames, plugins, model, quantile=quantile)
+
+
+def _from_starts(data, frames, plugins, options, starts, best=None):
+    """``best``, or the rounds from ``starts`` (None entries skipped) when they end with
+    smaller one-step residuals on ``frames``, tried in turn until one ends out of the
+    valley; None when ``best`` is None and no start ends with a valid round."""
+    best_cost = np.inf if best is None else one_step_cost(data, best, frames)
+    for started in starts:
+        fitted = None if started is None else _rounds(data, frames, plugins, started,
+                                                      **options)
+        if fitted is None:
             continue
-        other_cost = cost(other)
-        if other_cost < best_cost:
-            best, best_cost = other, other_cost
-        if not in_valley(other):
+        fitted_cost = one_step_cost(data, fitted, frames)
+        if fitted_cost < best_cost:
+            best, best_cost = fitted, fitted_cost
+        if not in_valley(data, fitted):
             break
     return best
+
+
+def _out_of_valley(data, frames, plugins, started, fitted, options):
+    """``fitted``, or the rounds from other starts when those end with smaller one-step
+    residuals on ``frames``; run only when the rest lengths came out well below the
+    recorded ones (:func:`in_valley`). A start can lead the rounds into the wrong valley:
+    where the constraint moves most particle-frames, every start by trimming fits the
+    constrained ones, and noise and the constraint both bias a start's stiffness down.
+    Tried in turn until one ends out of the valley: the starts of :func:`consensus_start`,
+    then starts :data:`VALLEY_STIFFER` times stiffer than ``started``.
+    """
+    if not in_valley(data, fitted):
+        return fitted
+    base, terms = started
+    stiffer = ((base._replace(k=base.k * factor), terms) for factor in VALLEY_STIFFER)
+    starts = itertools.chain(_consensus_starts(data, frames, plugins, options["model"]),
+                             stiffer)
+    return _from_starts(data, frames, plugins, options, starts, best=fitted)
 
 
 def fit_through_constraint(data, frames, plugins=(), *, model="5", start=None,

@@ -256,7 +256,8 @@ NOISE_BANDS = ((0.0, problem.NOISE_WARN_H), (problem.NOISE_WARN_H, problem.NOISE
                (problem.NOISE_STRONG_H, math.inf))
 
 
-def _by_regime(rows, regimes):
+def by_regime(rows, regimes):
+    """Counts per regime of constraint activity (``regimes`` as in :func:`summarise`)."""
     groups = [(regime["label"], float(regime["max_share"]), []) for regime in regimes]
     for row in rows:
         for _, high, members in groups:
@@ -290,8 +291,8 @@ def summarise(rows, regimes, rtol):
         "by_noise": [{"noise_h_range": [low, high if math.isfinite(high) else None],
                       **_counts([r for r in rows if low <= r["noise_h"] < high])}
                      for low, high in NOISE_BANDS],
-        "by_regime": _by_regime(rows, regimes),
-        "by_regime_quiet": _by_regime(quiet, regimes),
+        "by_regime": by_regime(rows, regimes),
+        "by_regime_quiet": by_regime(quiet, regimes),
         "refused": int(sum(r["refused"] is not None for r in rows)),
         "wall_seconds_median": float(np.median([r["wall_seconds"] for r in rows])),
     }

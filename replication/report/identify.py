@@ -414,7 +414,7 @@ def _band_label(band):
 
 def outside_section(result):
     """The identifiers blind on outside data over the whole range of their bounds."""
-    from replication.experiments.outside_identify import answers_of
+    from replication.experiments.outside_identify import answers_of, by_regime
 
     cfg = result["config"]
     study = cfg["study"]
@@ -498,17 +498,15 @@ def outside_section(result):
     above = "; ".join(
         f"{method} {sum(b['n'] - b['n_failed'] for b in bands)} of "
         f"{sum(b['n'] for b in bands)}" for method, bands in noisy.items())
-    regimes = study["regimes"]
-    crowded = [row for row in answers_of(result["datasets"], methods[0])
-               if row["constraint_share"] > (regimes[-2]["max_share"] if len(regimes) > 1
-                                             else 0.0)]
-    exact = [row for row in crowded if row["noise_h"] == 0]
-    quiet_noisy = [row for row in crowded if 0 < row["noise_h"] < quiet_h]
+    datasets = answers_of(result["datasets"], methods[0])
+    crowded = [by_regime(chosen, study["regimes"])[-1] for chosen in (
+        [row for row in datasets if row["noise_h"] == 0],
+        [row for row in datasets if 0 < row["noise_h"] < quiet_h])]
     lines += ["", f"Above {fmt(quiet_h)} h of position noise the answers are biased (within "
               f"{tol}%: {above}). Where the constraint moves most particles at most steps "
-              f"({regimes[-1]['label']}: soft or weakly damped cloths), {methods[0]} is "
-              f"within {tol}% on {_ok_of(exact)} noise-free datasets and on "
-              f"{_ok_of(quiet_noisy)} with noise under {fmt(quiet_h)} h. Its engine looks "
+              f"({crowded[0]['label']}: soft or weakly damped cloths), {methods[0]} has "
+              f"{_share_text(crowded[0])} on noise-free data and {_share_text(crowded[1])} "
+              f"with noise under {fmt(quiet_h)} h. Its engine looks "
               "for the few particle-frames the constraint left alone by least quantile of "
               "squares (`regression.consensus_start`, docs/experiments.md), which needs "
               "them to fit the unconstrained step closely: under noise the elemental fits "
@@ -516,7 +514,3 @@ def outside_section(result):
               "searches (docs/experiments.md, `cloth_identify`, Known limits)."]
     return Section("\n".join(lines), rows)
 
-
-def _ok_of(rows):
-    """"k of n" successes among ``rows``."""
-    return f"{sum(bool(row['success']) for row in rows)} of {len(rows)}"

@@ -99,13 +99,15 @@ def _steps_inside(position, increment, n, limit):
 
 
 @numba.njit(cache=True, nogil=True)
-def _walk(flat, start, slope, n_steps, n_cells):
+def _walk(flat, start, slope, n_steps, n_cells, along=False):
     """Vote in cell ``(step, floor(start + step * slope))`` for every step inside the grid.
 
-    ``flat`` is a C-ordered ``(n_steps, n_cells)`` accumulator, flattened, so that
-    consecutive votes touch nearby memory. The walk is in fixed point and its range is
-    solved exactly beforehand, so the loop has no bounds test; unsigned offsets spare
-    numba's negative-index wrap-around. Returns the number of votes.
+    ``flat`` is a C-ordered ``(n_steps, n_cells)`` accumulator, flattened, or with
+    ``along`` a ``(n_cells, n_steps)`` one: consecutive steps then vote in neighbouring
+    memory (the same cache line for many steps, as ``|slope| <= 1``), which :func:`_vote`
+    uses; the votes and their cells are the same either way. The walk is in fixed point
+    and its range is solved exactly beforehand, so the loop has no bounds test; unsigned
+    offsets spare numba's negative-index wrap-around. Returns the number of votes.
     """
     low, high = _span(start, slope, n_steps, n_cells)
     if high <= low:
@@ -117,12 +119,20 @@ def _walk(flat, start, slope, n_steps, n_cells):
     if k_hi <= k_lo:
         return 0
     position += k_lo * increment
-    row = np.uint64((low + k_lo) * n_cells)
-    stride = np.uint64(n_cells)
-    for _ in range(k_lo, k_hi):
-        flat[row + np.uint64(position >> _FIXED_BITS)] += 1
-        position += increment
-        row += stride
+    if along:
+        step = np.uint64(low + k_lo)
+        stride = np.uint64(n_steps)
+        for _ in range(k_lo, k_hi):
+            flat[np.uint64(position >> _FIXED_BITS) * stride + step] += 1
+            position += increment
+            step += np.uint64(1)
+    else:
+        row = np.uint64((low + k_lo) * n_cells)
+        stride = np.uint64(n_cells)
+        for _ in range(k_lo, k_hi):
+            flat[row + np.uint64(position >> _FIXED_BITS)] += 1
+            position += increment
+            row += stride
     return k_hi - k_lo
 
 
@@ -130,9 +140,10 @@ def _walk(flat, start, slope, n_steps, n_cells):
 def _vote(acc, acc_t, x, y, gx, gy, gt, omega, x0, y0, cell):
     """Add one vote per column (or row) along each pixel's IRC line; return the vote count.
 
-    Steep lines vote in ``acc`` (ny, nx) row by row, shallow ones in the transposed
-    ``acc_t`` (nx, ny) column by column; the accumulation space is ``acc + acc_t.T``.
-    Both must be C-contiguous.
+    Shallow lines vote in ``acc`` (ny, nx) column by column, steep ones in the transposed
+    ``acc_t`` (nx, ny) row by row, each along its contiguous axis (``_walk(along=True)``:
+    the same counts as across it, 10% faster on a 150 x 150 grid, 35% on 256 x 256); the
+    accumulation space is ``acc + acc_t.T``. Both must be C-contiguous.
     """
     ny, nx = acc.shape
     flat, flat_t = acc.ravel(), acc_t.ravel()
@@ -145,10 +156,10 @@ def _vote(acc, acc_t, x, y, gx, gy, gt, omega, x0, y0, cell):
         cy = (y[k] + s * gx[k] - y0) / cell
         if abs(gx[k]) >= abs(gy[k]):
             slope = gy[k] / gx[k]
-            votes += _walk(flat_t, cy - cx * slope + 0.5, slope, nx, ny)
+            votes += _walk(flat, cy - cx * slope + 0.5, slope, nx, ny, True)
         else:
             slope = gx[k] / gy[k]
-            votes += _walk(flat, cx - cy * slope + 0.5, slope, ny, nx)
+            votes += _walk(flat_t, cx - cy * slope + 0.5, slope, ny, nx, True)
     return votes
 
 
@@ -212,6 +223,15 @@ def accumulate(pixels, omega, grid):
     return acc.astype(np.int32) + acc_t.T
 
 
+_VOTES_PER_CALL = 20_000_000  # per thread and compiled call of _sweep: ~20 ms
+
+
+def _omegas_per_thread(n_pixels, grid):
+    """How many accumulations one thread makes per :func:`_sweep` call: as many as fit in
+    ``_VOTES_PER_CALL`` votes (a line votes at most ``max(nx, ny)`` times), at least 1."""
+    return max(1, _VOTES_PER_CALL // max(1, n_pixels * max(grid.nx, grid.ny)))
+
+
 def sweep(pixels, omegas, grid):
     """The paper's ``F: omega -> (xi, eta, peak value)`` over a sweep of ``omega``.
 
@@ -234,8 +254,10 @@ def sweep(pixels, omegas, grid):
     template = np.zeros(1, dtype=_counter_dtype(len(pixels)))
     arrays = _as_arrays(pixels)
     # a few omegas per compiled call: Ctrl-C (raised only between calls) ends a long sweep
-    # within a few accumulations, and no interrupt lands inside the parallel region
-    chunk = numba.get_num_threads()
+    # within a few accumulations, and no interrupt lands inside the parallel region; small
+    # accumulations go several to a thread per call: each call's signal handling
+    # (interrupts.deferred, ~70 us) cost a fifth of a 3000-pixel restricted accumulation
+    chunk = numba.get_num_threads() * _omegas_per_thread(len(pixels), grid)
     parts = []
     for start in range(0, omegas.size, chunk):
         with deferred():

@@ -245,28 +245,60 @@ def _is_rotating(stats, settings):
                 & (stats["pixels"] >= settings["min_pixels"]))
 
 
+@numba.njit(cache=True, nogil=True)
+def _overlap_pairs(x, y, r):
+    """The parts of :func:`overlap_areas` without trigonometry: the ``(N, N)`` areas of
+    the pairs where one disc lies within the other, and ``(i, j, d)`` of the pairs whose
+    circles cross (a lens), in row-major order.
+
+    Most pairs of a spread population lie farther apart along x or y than ``r1 + r2``:
+    they do not overlap whatever ``hypot`` rounds to (it is at least ``|dx|`` and
+    ``|dy|``), so it is computed for the other pairs only (the factor keeps the pairs at
+    the border of that test on the exact path)."""
+    n = x.size
+    area = np.zeros((n, n))
+    lens_i = np.empty(n * n, dtype=np.int64)
+    lens_j = np.empty(n * n, dtype=np.int64)
+    lens_d = np.empty(n * n)
+    m = 0
+    for i in range(n):
+        for j in range(n):
+            dx, dy = x[i] - x[j], y[i] - y[j]
+            reach = r[i] + r[j]
+            if not max(abs(dx), abs(dy)) < reach * (1.0 + 1e-9):
+                continue
+            d = math.hypot(dx, dy)
+            if d >= reach:
+                continue
+            if d <= abs(r[i] - r[j]):
+                area[i, j] = np.pi * min(r[i], r[j]) ** 2
+            else:
+                lens_i[m], lens_j[m], lens_d[m] = i, j, d
+                m += 1
+    return area, lens_i[:m], lens_j[:m], lens_d[:m]
+
+
 def overlap_areas(x, y, r):
     """Pairwise intersection areas of discs, shape ``(N, N)`` (diagonal: the disc's area).
+
+    The pairwise tests run compiled (:func:`_overlap_pairs`: as N x N numpy arrays they
+    took most of the sharing's time); the lens formula is numpy's, as before.
 
     Parameters
     ----------
     x, y, r : (N,) ndarray
         Centres and radii, pixels.
     """
-    d = np.hypot(x[:, None] - x[None, :], y[:, None] - y[None, :])
-    r1, r2 = np.broadcast_arrays(r[:, None], r[None, :])
-    apart = d >= r1 + r2
-    inside = ~apart & (d <= np.abs(r1 - r2))       # one disc within the other
-    lens = ~(apart | inside)                        # the circles cross: a lens
-    area = np.zeros(d.shape)
-    area[inside] = np.pi * np.minimum(r1[inside], r2[inside]) ** 2
-    # the lens formula only where it applies (most pairs of a spread population are apart)
-    d, r1, r2 = d[lens], r1[lens], r2[lens]
+    r = np.ascontiguousarray(r, dtype=np.float64)
+    area, i, j, d = _overlap_pairs(np.ascontiguousarray(x, dtype=np.float64),
+                                   np.ascontiguousarray(y, dtype=np.float64), r)
+    r1, r2 = r[i], r[j]
     with np.errstate(invalid="ignore", divide="ignore"):
         a1 = np.arccos(np.clip((d * d + r1 * r1 - r2 * r2) / (2 * d * r1), -1, 1))
         a2 = np.arccos(np.clip((d * d + r2 * r2 - r1 * r1) / (2 * d * r2), -1, 1))
-        area[lens] = (r1 * r1 * (a1 - np.sin(2 * a1) / 2) + r2 * r2 * (a2 - np.sin(2 * a2) / 2))
-    return np.nan_to_num(area)
+        area[i, j] = np.nan_to_num(r1 * r1 * (a1 - np.sin(2 * a1) / 2)
+                                   + r2 * r2 * (a2 - np.sin(2 * a2) / 2))
+    return area
 
 
 def shared_costs(cost, x, y, r, *, coefficient, area_unit):
@@ -332,22 +364,32 @@ def _disc_cells(pop, used):
 def _project(pop, cells, starts, gx, gy, gt, gnorm, damping, cap, uniforms, width):
     """Damped Kaczmarz projections of ``(xi, eta)`` onto the IRC lines of the disc's
     pixels (``cells[starts[i]:starts[i + 1]]``), visited in the random order drawn from
-    ``uniforms``: individual ``i``'s ``k``-th swap uses ``uniforms[i, k % width]``."""
+    ``uniforms``: individual ``i``'s ``k``-th swap uses ``uniforms[i, k % width]``.
+
+    Each disc's derivatives are first copied in pixel order to small arrays, which the
+    random order then reads (half the time of reading the (P, H, W) maps in that order;
+    the same operations on the same values)."""
     out = pop.copy()
     for i in range(pop.shape[0]):
         omega = pop[i, 5]
         first, m = starts[i], starts[i + 1] - starts[i]
+        values = np.empty((6, m))    # Ix, Iy, It / omega, |grad I|, row, col
+        for k in range(m):
+            p, row, col = cells[first + k, 0], cells[first + k, 1], cells[first + k, 2]
+            values[0, k], values[1, k] = gx[p, row, col], gy[p, row, col]
+            values[2, k], values[3, k] = gt[p, row, col] / omega, gnorm[p, row, col]
+            values[4, k], values[5, k] = row, col
         order = np.arange(m)
         for k in range(m - 1, 0, -1):      # Fisher-Yates with the given uniforms
             j = int(uniforms[i, k % width] * (k + 1))
             order[k], order[j] = order[j], order[k]
         xi, eta = out[i, 3], out[i, 4]
         for k in range(m):
-            cell = first + order[k]
-            p, row, col = cells[cell, 0], cells[cell, 1], cells[cell, 2]
-            a, b = gx[p, row, col], gy[p, row, col]
-            residual = -a * (row - eta) + b * (col - xi) + gt[p, row, col] / omega
-            g = gnorm[p, row, col]
+            cell = order[k]
+            a, b = values[0, cell], values[1, cell]
+            residual = -a * (values[4, cell] - eta) + b * (values[5, cell] - xi) \
+                + values[2, cell]
+            g = values[3, cell]
             if abs(residual) / g > cap:
                 continue
             # paper 2.3.2: move (xi, eta) a fraction of the way to the pixel's IRC line

@@ -17,6 +17,9 @@ after ``iterations``.
 
 from __future__ import annotations
 
+import threading
+from collections import OrderedDict
+
 import numba
 import numpy as np
 
@@ -44,7 +47,7 @@ def support(data, xi, eta, omega, *, tolerance=0.3, ambiguous=0.15, empty_cost=0
         Pixels/frame.
     """
     n_pairs, height, width = data.gx.shape
-    rows, cols = np.mgrid[0:height, 0:width].astype(float)
+    rows, cols = _coordinates(height, width)
     score = np.zeros((height, width))
     for p in range(n_pairs):
         g = np.where(data.used[p], data.gnorm[p], 1.0)
@@ -56,6 +59,49 @@ def support(data, xi, eta, omega, *, tolerance=0.3, ambiguous=0.15, empty_cost=0
         evidence = np.where(follows, 1.0, np.where(unclear, -ambiguous_cost, -1.0))
         score += np.where(data.used[p], evidence, -empty_cost)
     return score / n_pairs
+
+
+def _coordinates(height, width):
+    """Row ``(H, 1)`` and column ``(1, W)`` of the pixels, floats: broadcast against
+    ``(H, W)`` maps they give each pixel the values of ``np.mgrid``, without its two
+    full arrays."""
+    return (np.arange(height, dtype=float)[:, None], np.arange(width, dtype=float)[None, :])
+
+
+_POLAR = OrderedDict()
+_POLAR_LOCK = threading.Lock()
+POLAR_CACHE_BYTES = 64 << 20   # the maps of 64 centres on 256 x 256 frames
+
+
+def polar(shape, x, y, n_sectors):
+    """Distance to ``(x, y)`` and sector index of every pixel, ``(H, W)`` each (read-only).
+
+    The last centres' maps are kept (up to :data:`POLAR_CACHE_BYTES`): :func:`sector_profiles`
+    and :func:`region_mask` of one snake need the same, and the pipeline's second round
+    (``snake.rounds = 2``) snakes again from each disc's centre; these arctan2 and hypot
+    maps were about half of a snake's time.
+    """
+    key = (tuple(int(v) for v in shape), float(x), float(y), int(n_sectors))
+    with _POLAR_LOCK:
+        if key in _POLAR:
+            _POLAR.move_to_end(key)
+            return _POLAR[key]
+    (height, width), x, y, n_sectors = key
+    rows, cols = _coordinates(height, width)
+    # full (H, W) operands, as np.mgrid gave: numpy may take another (SIMD) loop for
+    # hypot and arctan2 on broadcast ones, with other last bits
+    dx, dy = np.repeat(cols - x, height, axis=0), np.repeat(rows - y, width, axis=1)
+    rho = np.hypot(dx, dy)
+    sector = (np.floor((np.arctan2(dy, dx) + np.pi) / (2 * np.pi) * n_sectors)
+              .astype(np.int64) % n_sectors)
+    rho.flags.writeable = sector.flags.writeable = False
+    with _POLAR_LOCK:
+        _POLAR[key] = rho, sector
+        total = sum(a.nbytes + b.nbytes for a, b in _POLAR.values())
+        while total > POLAR_CACHE_BYTES and len(_POLAR) > 1:
+            old_rho, old_sector = _POLAR.popitem(last=False)[1]
+            total -= old_rho.nbytes + old_sector.nbytes
+    return rho, sector
 
 
 def sector_profiles(score, x, y, *, n_sectors=64, rho_max=120):
@@ -76,16 +122,13 @@ def sector_profiles(score, x, y, *, n_sectors=64, rho_max=120):
     cumulative : (n_sectors, rho_max + 1) ndarray
         ``cumulative[k, j] = - sum s(p)`` over the pixels of sector ``k`` with ``rho < j``.
     """
-    height, width = score.shape
-    rows, cols = np.mgrid[0:height, 0:width].astype(float)
-    rho = np.hypot(cols - x, rows - y)
-    sector = (np.floor((np.arctan2(rows - y, cols - x) + np.pi) / (2 * np.pi) * n_sectors)
-              .astype(np.int64) % n_sectors)
+    rho, sector = polar(score.shape, x, y, n_sectors)
     near = rho < rho_max
     ring = np.floor(rho[near]).astype(np.int64) + 1
-    energy = np.zeros((n_sectors, rho_max + 1))
-    np.add.at(energy, (sector[near], ring), -score[near])
-    return np.cumsum(energy, axis=1)
+    # bincount adds the weights in pixel order, as np.add.at did (the same sums), faster
+    energy = np.bincount(sector[near] * (rho_max + 1) + ring, weights=-score[near],
+                         minlength=n_sectors * (rho_max + 1))
+    return np.cumsum(energy.reshape(n_sectors, rho_max + 1), axis=1)
 
 
 def stiffness_energy(rho, kappa):
@@ -191,12 +234,7 @@ def region_mask(shape, x, y, rho):
     x, y : float
     rho : (K,) ndarray
     """
-    height, width = shape
-    n_sectors = rho.size
-    rows, cols = np.mgrid[0:height, 0:width].astype(float)
-    distance = np.hypot(cols - x, rows - y)
-    sector = (np.floor((np.arctan2(rows - y, cols - x) + np.pi) / (2 * np.pi) * n_sectors)
-              .astype(np.int64) % n_sectors)
+    distance, sector = polar(shape, x, y, rho.size)
     return distance < rho[sector]
 
 

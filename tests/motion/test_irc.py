@@ -113,14 +113,14 @@ def test_line_walk_matches_a_plain_loop():
         start, slope = rng.uniform(-40, 60), rng.uniform(-1, 1)
         flat = np.zeros(32 * 20, dtype=np.int32)
         votes = irc._walk(flat, start, slope, 32, 20)
-        expected = np.zeros((32, 20), dtype=np.int32)
+        expected = np.zeros((20, 32), dtype=np.int32)   # (cells, steps)
         for step in range(32):
             cell = int(np.floor(start + step * slope))
             if 0 <= cell < 20:
-                expected[step, cell] += 1
+                expected[cell, step] += 1
         # fixed point may move a vote by one cell when a line grazes a cell border
         assert abs(votes - expected.sum()) <= 1
-        assert np.abs(flat.reshape(32, 20) - expected).sum() <= 2
+        assert np.abs(flat.reshape(20, 32) - expected).sum() <= 2
 
 
 def test_int16_and_int32_counters_agree():

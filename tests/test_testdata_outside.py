@@ -110,6 +110,9 @@ def test_every_kind(kind, tmp_path):
                                     "effect_rms_h": truth["effect_rms_h"],
                                     "snr": truth["snr"]}]
     assert truth["spec"] == spec
+    free = co.FREE
+    assert truth["constraint_share"] == float(np.mean(run["constrained"][:, free]))
+    assert 0.0 <= truth["constraint_share"] <= 1.0
 
     # the file: nominal scalar mass, no truth anywhere
     assert made["mass"] == 0.001 and made["dt"] == 0.002 and made["damping"] == 0.0

@@ -241,22 +241,45 @@ def base_from_theta(theta, model, tau):
     return BaseModel(rest, k, np.broadcast_to(np.asarray(tau, float), (N_TYPES,)).copy())
 
 
+SELECTIONS_KEPT = 4   # frame selections whose spring sums state_frames keeps per data
+
+
+def _shared_sums(data, key, x):
+    """The spring sums of positions ``x`` (``data.x`` or some of its frames, named by
+    ``key``), computed once and kept in ``data.cache``: read-only, shared by every base
+    model's states. Of the frame selections, the :data:`SELECTIONS_KEPT` most recently
+    used are kept (a least-squares fit asks for the same frames hundreds of times)."""
+    kept = data.cache.setdefault("sums", {})
+    if key in kept:
+        kept[key] = kept.pop(key)   # most recently used last
+        return kept[key]
+    sums = geometry.spring_sums(data.ops, x)
+    for array in sums:
+        array.flags.writeable = False   # shared: nobody may change them
+    kept[key] = sums
+    selections = [k for k in kept if k is not None]
+    for old in selections[:-SELECTIONS_KEPT]:
+        del kept[old]
+    return sums
+
+
 def state_frames(data, base, frames=None):
     """:class:`StateFrames` of ``frames`` (all frames when None) at the ``base`` model.
 
-    The spring sums of all frames depend on the recorded positions alone: they are
-    computed once per ``data`` and shared by every base model's states.
+    Spring sums depend on the recorded positions alone: those of all frames and of the
+    last few frame selections are computed once per ``data`` (:func:`_shared_sums`) and
+    shared by every base model's states.
     """
     if frames is None:
-        if "sums" not in data.cache:
-            sums = geometry.spring_sums(data.ops, data.x)
-            for array in sums:
-                array.flags.writeable = False   # shared: nobody may change them
-            data.cache["sums"] = sums
         return StateFrames(data.x, data.v, data.ops, data.mass, base.rest, base.k,
-                           data.scene.damping, sums=data.cache["sums"])
-    return StateFrames(data.x[frames], data.v[frames], data.ops, data.mass, base.rest,
-                       base.k, data.scene.damping)
+                           data.scene.damping, sums=_shared_sums(data, None, data.x))
+    frames = np.asarray(frames)
+    if frames.dtype == bool:
+        frames = np.flatnonzero(frames)
+    frames = frames.astype(np.intp, copy=False)
+    x = data.x[frames]
+    return StateFrames(x, data.v[frames], data.ops, data.mass, base.rest, base.k,
+                       data.scene.damping, sums=_shared_sums(data, frames.tobytes(), x))
 
 
 def design(data, base, plugins, model, frames=None):

@@ -600,6 +600,11 @@ def _size_and_snr(accel, mask, noise_h):
     return rms_h, snr
 
 
+def _share(flags):
+    """Mean of a boolean array, 0 when it is empty."""
+    return float(np.mean(flags)) if flags.size else 0.0
+
+
 def make(spec):
     """Trajectory file arrays for ``spec`` (noise added) and the ground truth.
 
@@ -613,7 +618,8 @@ def make(spec):
     ``meta`` ("{}": no truth), and ``truth``: ``expected_names`` (sorted library names of the
     effects present), ``expected_unexplained`` (bool), ``effect_rms_h`` and ``snr`` over the free
     particle-frames the constraint did not move, ``per_effect`` (list of dicts ``kind``,
-    ``expected``, ``effect_rms_h``, ``snr``) and ``spec``.
+    ``expected``, ``effect_rms_h``, ``snr``), ``constraint_share`` (the share of free
+    particle-steps the constraint moved) and ``spec``.
     """
     run = simulate(spec)
     positions = run["positions"]
@@ -635,6 +641,7 @@ def make(spec):
              "expected_unexplained": any(KINDS[e["kind"]]["expected"] == "unexplained"
                                          for e in spec["effects"]),
              "effect_rms_h": rms_h, "snr": snr, "per_effect": per_effect,
+             "constraint_share": _share(run["constrained"][:, FREE]),
              "spec": json.loads(json.dumps(spec))}
     return {"positions": positions, "dt": DT, "mass": MASS, "gravity": GRAVITY.copy(),
             "pinned": np.array(PINNED, dtype=np.int64), "damping": 0.0, "meta": "{}",

@@ -135,3 +135,23 @@ def test_spring_sums_of_all_frames_are_computed_once_and_read_only():
         first[0][0, 0, 0, 0] = 1.0
     part = regression.state_frames(data, base, [5, 9]).sums   # a subset: its own sums
     assert np.array_equal(part[0], fresh[0][:, [5, 9]])
+    assert np.array_equal(part[1], fresh[1][:, [5, 9]])
+
+
+def test_spring_sums_of_a_frame_selection_are_kept_for_the_last_few_selections():
+    data = regression.prepare(read_trajectory("synthetic_data/cloth/reference_tau0.1.npz"))
+    base = regression.BaseModel(np.full(6, data.h), np.full(6, 4.0), np.full(6, 0.1))
+    first = regression.state_frames(data, base, np.array([5, 9])).sums
+    again = regression.state_frames(data, base._replace(k=np.full(6, 2.0)), [5, 9]).sums
+    assert again[0] is first[0]                     # the same frames, any base: shared
+    mask = np.zeros(data.n_frames, bool)
+    mask[[5, 9]] = True
+    assert regression.state_frames(data, base, mask).sums[0] is first[0]   # same frames
+    with pytest.raises(ValueError):
+        first[1][0, 0, 0, 0] = 1.0
+    for start in range(regression.SELECTIONS_KEPT):   # newer selections push it out
+        regression.state_frames(data, base, [10 + start])
+    kept = [key for key in data.cache["sums"] if key is not None]
+    assert len(kept) == regression.SELECTIONS_KEPT
+    later = regression.state_frames(data, base, [5, 9]).sums
+    assert later[0] is not first[0] and np.array_equal(later[0], first[0])

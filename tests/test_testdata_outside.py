@@ -110,8 +110,7 @@ def test_every_kind(kind, tmp_path):
                                     "effect_rms_h": truth["effect_rms_h"],
                                     "snr": truth["snr"]}]
     assert truth["spec"] == spec
-    free = co.FREE
-    assert truth["constraint_share"] == float(np.mean(run["constrained"][:, free]))
+    assert truth["constraint_share"] == float(np.mean(run["constrained"][:, co.FREE]))
     assert 0.0 <= truth["constraint_share"] <= 1.0
 
     # the file: nominal scalar mass, no truth anywhere

@@ -150,7 +150,7 @@ class StateFrames:
         Known linear damping of the data file.
     """
 
-    def __init__(self, x, v, ops, mass, rest, k, damping=0.0, sums=None):
+    def __init__(self, x, v, ops, mass, rest, k, damping=0.0, sums=None, memo=None):
         self.x = x
         self.v = v
         self.ops = ops
@@ -160,6 +160,19 @@ class StateFrames:
         self.damping = float(damping)
         if sums is not None:   # spring_sums(ops, x), already computed
             self.__dict__["sums"] = sums
+        self._memo = memo      # (data.cache, frames key) of recorded frames, or None
+
+    def columns(self, plugin):
+        """``plugin.basis(self)``. On recorded frames (:func:`state_frames`) the columns are
+        computed once per frame selection, and per base model when the plug-in
+        ``needs_base``, and shared read-only (:func:`_kept_columns`)."""
+        if self._memo is None:
+            return plugin.basis(self)
+        cache, frames_key = self._memo
+        key = (plugin.name, plugin.basis, frames_key)
+        if plugin.needs_base:
+            key += (self.rest.tobytes(), self.k.tobytes())
+        return _kept_columns(cache, key, lambda: plugin.basis(self))
 
     @cached_property
     def sums(self):
@@ -241,45 +254,78 @@ def base_from_theta(theta, model, tau):
     return BaseModel(rest, k, np.broadcast_to(np.asarray(tau, float), (N_TYPES,)).copy())
 
 
-SELECTIONS_KEPT = 4   # frame selections whose spring sums state_frames keeps per data
+SELECTIONS_KEPT = 4   # frame selections whose states state_frames keeps per data
+COLUMNS_BYTES_KEPT = 2 ** 28   # plug-in columns kept per data (most recently used first)
 
 
-def _shared_sums(data, key, x):
-    """The spring sums of positions ``x`` (``data.x`` or some of its frames, named by
-    ``key``), computed once and kept in ``data.cache``: read-only, shared by every base
-    model's states. Of the frame selections, the :data:`SELECTIONS_KEPT` most recently
+def _read_only(arrays):
+    for array in arrays:
+        array.flags.writeable = False   # shared: nobody may change them
+    return arrays
+
+
+def _recorded_states(data, key, frames):
+    """Positions, velocities and spring sums of the recorded ``frames`` (all frames when
+    ``key`` is None), computed once and kept in ``data.cache``: read-only, shared by every
+    base model's states. Of the frame selections, the :data:`SELECTIONS_KEPT` most recently
     used are kept (a least-squares fit asks for the same frames hundreds of times)."""
-    kept = data.cache.setdefault("sums", {})
+    kept = data.cache.setdefault("states", {})
     if key in kept:
         kept[key] = kept.pop(key)   # most recently used last
         return kept[key]
-    sums = geometry.spring_sums(data.ops, x)
-    for array in sums:
-        array.flags.writeable = False   # shared: nobody may change them
-    kept[key] = sums
+    if key is None:
+        x, v = data.x, data.v
+        states = (x, v, _read_only(geometry.spring_sums(data.ops, x)))
+    else:
+        x = data.x[frames]
+        states = (*_read_only((x, data.v[frames])), _read_only(geometry.spring_sums(data.ops, x)))
+    kept[key] = states
     selections = [k for k in kept if k is not None]
     for old in selections[:-SELECTIONS_KEPT]:
         del kept[old]
-    return sums
+    return states
+
+
+def _kept_columns(cache, key, make):
+    """Plug-in columns named by ``key`` (plug-in, frames and, when they depend on it, the
+    base model), made by ``make()`` once and kept read-only in ``cache`` while the kept
+    columns take at most :data:`COLUMNS_BYTES_KEPT` (the newest are always kept)."""
+    kept = cache.setdefault("columns", {})
+    if key in kept:
+        kept[key] = kept.pop(key)
+        return kept[key]
+    columns = make()
+    if not isinstance(columns, np.ndarray) or columns.base is not None:
+        columns = np.array(columns, dtype=float)   # own its memory before it is shared
+    columns.flags.writeable = False
+    kept[key] = columns
+    total = sum(c.nbytes for c in kept.values())
+    for old in list(kept)[:-1]:
+        if total <= COLUMNS_BYTES_KEPT:
+            break
+        total -= kept.pop(old).nbytes
+    return columns
 
 
 def state_frames(data, base, frames=None):
     """:class:`StateFrames` of ``frames`` (all frames when None) at the ``base`` model.
 
-    Spring sums depend on the recorded positions alone: those of all frames and of the
-    last few frame selections are computed once per ``data`` (:func:`_shared_sums`) and
-    shared by every base model's states.
+    Positions, velocities and spring sums depend on the recorded data alone: those of all
+    frames and of the last few frame selections are kept per ``data``
+    (:func:`_recorded_states`) and shared by every base model's states, and so are the
+    plug-in columns computed on them (:meth:`StateFrames.columns`).
     """
     if frames is None:
-        return StateFrames(data.x, data.v, data.ops, data.mass, base.rest, base.k,
-                           data.scene.damping, sums=_shared_sums(data, None, data.x))
-    frames = np.asarray(frames)
-    if frames.dtype == bool:
-        frames = np.flatnonzero(frames)
-    frames = frames.astype(np.intp, copy=False)
-    x = data.x[frames]
-    return StateFrames(x, data.v[frames], data.ops, data.mass, base.rest, base.k,
-                       data.scene.damping, sums=_shared_sums(data, frames.tobytes(), x))
+        key = None
+    else:
+        frames = np.asarray(frames)
+        if frames.dtype == bool:
+            frames = np.flatnonzero(frames)
+        frames = frames.astype(np.intp, copy=False)
+        key = frames.tobytes()
+    x, v, sums = _recorded_states(data, key, frames)
+    return StateFrames(x, v, data.ops, data.mass, base.rest, base.k, data.scene.damping,
+                       sums=sums, memo=(data.cache, key))
 
 
 def design(data, base, plugins, model, frames=None):
@@ -290,7 +336,7 @@ def design(data, base, plugins, model, frames=None):
     blocks = [base_columns(A, B, data.mass, model)]
     slices, start = {}, blocks[0].shape[-1]
     for plugin in plugins:
-        cols = plugin.basis(q)
+        cols = q.columns(plugin)
         blocks.append(cols)
         slices[plugin.name] = slice(start, start + cols.shape[-1])
         start += cols.shape[-1]
@@ -301,7 +347,7 @@ def extra_force(terms, q):
     """Total force of fitted terms ``[(plugin, theta)]`` on the frames ``q``, (F, P, 3)."""
     total = np.zeros_like(q.x)
     for plugin, theta in terms:
-        total += plugin.basis(q) @ np.asarray(theta, dtype=float)
+        total += q.columns(plugin) @ np.asarray(theta, dtype=float)
     return total * q.mass[None, :, None]
 
 

@@ -75,9 +75,8 @@ class _LeanEvaluator(Evaluator):
     individual's defaults), whose violation is ``[0.0]``.
     """
 
-    def eval(self, problem, pop, **kwargs):
-        if kwargs.keys() - {"algorithm"}:  # options only the full evaluator implements
-            return super().eval(problem, pop, **kwargs)
+    def eval(self, problem, pop, algorithm=None):
+        # (the one keyword pymoo's algorithms pass; any other is a TypeError, not ignored)
         todo = [ind for ind in ([pop] if isinstance(pop, Individual) else pop)
                 if not _EVALUATED <= ind.evaluated]
         if todo:  # (an empty call would raise BudgetExhausted once the budget is spent)
@@ -136,7 +135,6 @@ class _LeanCMAES(_FirstBestOfOptAndPop, CMAES):
 
 
 # DE keeps its own _set_optimum: a mask of the ranks it has just computed, already cheap
-_CLASSES = {"ga": GA, "de": DE, "cmaes": CMAES, "pso": PSO, "nelder_mead": NelderMead}
 _LEAN_CLASSES = {"ga": _LeanGA, "de": DE, "cmaes": _LeanCMAES, "pso": _LeanPSO,
                  "nelder_mead": _LeanNelderMead}
 
@@ -180,7 +178,7 @@ class _NelderMeadTermination(NelderAndMeadTermination):
         return max(f_tol, x_tol, max_iter, max_evals, is_degenerated)
 
 
-def make_algorithm(name, *, x0=None, options=None, lean=False):
+def make_algorithm(name, *, x0=None, options=None):
     """A pymoo algorithm by ``name`` (one of :data:`ALGORITHMS`) with ``options``.
 
     Parameters
@@ -191,15 +189,15 @@ def make_algorithm(name, *, x0=None, options=None, lean=False):
         sampling one); ignored by the others.
     options : dict, optional
         Keyword arguments of the pymoo algorithm.
-    lean : bool
-        The variant :func:`run_pymoo` uses: the same algorithm with a cheaper optimum
-        bookkeeping that is exact only on problems without constraints and with one
-        objective, such as :class:`BatchedProblem`.
+
+    The algorithm is pymoo's with a cheaper optimum bookkeeping (:class:`_FirstBestOptimum`)
+    that is exact only on problems with one objective and no constraints, such as
+    :class:`BatchedProblem`.
     """
     options = dict(options or {})
     if name not in ALGORITHMS:
         raise ValueError(f"algorithm {name!r}: expected one of {', '.join(ALGORITHMS)}")
-    cls = (_LEAN_CLASSES if lean else _CLASSES)[name]
+    cls = _LEAN_CLASSES[name]
     return cls(x0=x0, **options) if name in _NEEDS_X0 else cls(**options)
 
 
@@ -266,7 +264,7 @@ def run_pymoo(objective, name, *, seed, options=None, max_restarts=10_000, x_tol
         if name in _NEEDS_X0:
             x0 = objective.lower + rng.random(objective.n_var) * (objective.upper
                                                                     - objective.lower)
-        algorithm = make_algorithm(name, x0=x0, options=options, lean=True)
+        algorithm = make_algorithm(name, x0=x0, options=options)
         generations += _run_once(BatchedProblem(objective), algorithm,
                                  _termination(name, objective.remaining, x_tol), run_seed)
         restarts += 1

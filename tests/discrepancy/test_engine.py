@@ -8,7 +8,7 @@ from replication.cloth import geometry, regression
 from replication.cloth.identify import identify
 from replication.cloth.identify import structured as identify_structured
 from replication.cloth.io import read_trajectory
-from replication.discrepancy import workflow
+from replication.discrepancy import effects, workflow
 from replication.errors import InputError
 
 SETTINGS = {"regression": {"first": 1, "stride": 5},
@@ -151,7 +151,61 @@ def test_spring_sums_of_a_frame_selection_are_kept_for_the_last_few_selections()
         first[1][0, 0, 0, 0] = 1.0
     for start in range(regression.SELECTIONS_KEPT):   # newer selections push it out
         regression.state_frames(data, base, [10 + start])
-    kept = [key for key in data.cache["sums"] if key is not None]
+    kept = [key for key in data.cache["states"] if key is not None]
     assert len(kept) == regression.SELECTIONS_KEPT
     later = regression.state_frames(data, base, [5, 9]).sums
     assert later[0] is not first[0] and np.array_equal(later[0], first[0])
+
+
+def test_recorded_positions_of_a_frame_selection_are_kept_read_only():
+    data = regression.prepare(read_trajectory("synthetic_data/cloth/reference_tau0.1.npz"))
+    base = regression.BaseModel(np.full(6, data.h), np.full(6, 4.0), np.full(6, 0.1))
+    first = regression.state_frames(data, base, [5, 9])
+    again = regression.state_frames(data, base._replace(k=np.full(6, 2.0)), [5, 9])
+    assert again.x is first.x and again.v is first.v
+    assert np.array_equal(first.x, data.x[[5, 9]]) and np.array_equal(first.v, data.v[[5, 9]])
+    with pytest.raises(ValueError):
+        first.x[0, 0, 0] = 1.0
+    assert regression.state_frames(data, base).x is data.x   # all frames: the data's own
+
+
+def test_plugin_columns_are_computed_once_per_frames_and_per_base_when_they_need_it():
+    data = regression.prepare(read_trajectory("synthetic_data/cloth/reference_tau0.1.npz"))
+    base = regression.BaseModel(np.full(6, data.h), np.full(6, 4.0), np.full(6, 0.1))
+    stiffer = base._replace(k=np.full(6, 5.0))
+    calls = []
+
+    def counted(basis):
+        def call(q):
+            calls.append(basis)
+            return basis(q)
+        return call
+    free = regression.Plugin("drag", counted(effects.LIBRARY["quadratic_drag"].basis))
+    based = regression.Plugin("mass", counted(effects.LIBRARY["nonuniform_mass"].basis), True)
+    for plugin, bases, computed in ((free, (base, stiffer), 1), (based, (base, stiffer), 2)):
+        calls.clear()
+        columns = [regression.state_frames(data, b, [5, 9]).columns(plugin) for b in bases * 2]
+        assert len(calls) == computed
+        for b, cols in zip(bases * 2, columns):   # what the plug-in itself gives
+            fresh = plugin.basis(regression.StateFrames(
+                data.x[[5, 9]], data.v[[5, 9]], data.ops, data.mass, b.rest, b.k,
+                data.scene.damping))
+            assert np.array_equal(cols, fresh)
+        with pytest.raises(ValueError):
+            columns[0][0, 0, 0, 0] = 1.0
+    calls.clear()
+    regression.state_frames(data, base, [5, 10]).columns(free)   # other frames: computed
+    assert len(calls) == 1
+
+
+def test_kept_plugin_columns_stay_within_their_byte_bound(monkeypatch):
+    data = regression.prepare(read_trajectory("synthetic_data/cloth/reference_tau0.1.npz"))
+    base = regression.BaseModel(np.full(6, data.h), np.full(6, 4.0), np.full(6, 0.1))
+    plugin = regression.Plugin("drag", effects.LIBRARY["quadratic_drag"].basis)
+    one = regression.state_frames(data, base, [5]).columns(plugin).nbytes
+    monkeypatch.setattr(regression, "COLUMNS_BYTES_KEPT", 2 * one)
+    for frame in range(6, 12):
+        regression.state_frames(data, base, [frame]).columns(plugin)
+    kept = data.cache["columns"]
+    assert sum(c.nbytes for c in kept.values()) <= 2 * one and len(kept) == 2
+    assert [key[2] for key in kept] == [np.array([f], np.intp).tobytes() for f in (10, 11)]

@@ -113,7 +113,11 @@ class BaseModel(NamedTuple):
 class Plugin(NamedTuple):
     """A force term linear in its coefficients: ``basis(q) -> (F, P, 3, m)`` extra
     acceleration per unit coefficient under the nominal mass; ``needs_base``: the columns
-    depend on the base model's rest lengths or stiffness (rebuilt every round)."""
+    depend on the base model's rest lengths or stiffness (rebuilt every round).
+
+    ``basis`` must be a function of the frames of ``q`` alone, and of ``q.rest`` and
+    ``q.k`` only when ``needs_base``: on recorded frames its columns are computed once per
+    frame selection (and base model) and shared (:meth:`StateFrames.columns`)."""
 
     name: str
     basis: Callable

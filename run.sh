@@ -26,8 +26,8 @@ setup() {
 case "${1:-}" in
   all)  setup; shift; exec .venv/bin/replicate-all "$@" ;;
   # one pytest worker per CPU (pytest-xdist), idle workers taking tests from busy ones;
-  # `bash run.sh test -n 0` runs them in one process
-  test) setup; shift; exec .venv/bin/python -m pytest -n auto --dist worksteal "$@" ;;
+  # `bash run.sh test -n 0` runs them in one process; the 15 slowest tests are listed at the end
+  test) setup; shift; exec .venv/bin/python -m pytest -n auto --dist worksteal --durations=15 "$@" ;;
   setup) setup ;;
   *) echo "usage: bash run.sh all|test|setup [args]" >&2; exit 2 ;;
 esac

@@ -52,6 +52,7 @@ from scipy.signal import savgol_filter
 from replication.cloth import geometry, kernels
 from replication.cloth.costs import ClothCost, structural_length
 from replication.cloth.mesh import FAMILY_OF_TYPE, N_TYPES, type_lengths
+from replication.cache import KeptArrays, read_only
 from replication.cloth.model import ClothParams, step
 from replication.errors import InputError
 from replication.optim.scan import zoom
@@ -164,19 +165,20 @@ class StateFrames:
         self.damping = float(damping)
         if sums is not None:   # spring_sums(ops, x), already computed
             self.__dict__["sums"] = sums
-        self._memo = memo      # (data.cache, frames key) of recorded frames, or None
+        self._memo = memo      # (kept columns, frames key) of recorded frames, or None
 
     def columns(self, plugin):
         """``plugin.basis(self)``. On recorded frames (:func:`state_frames`) the columns are
         computed once per frame selection, and per base model when the plug-in
-        ``needs_base``, and shared read-only (:func:`_kept_columns`)."""
+        ``needs_base``, and shared read-only (kept in ``data.cache``, at most
+        :data:`COLUMNS_BYTES_KEPT` bytes of them)."""
         if self._memo is None:
             return plugin.basis(self)
         cache, frames_key = self._memo
         key = (plugin.name, plugin.basis, frames_key)
         if plugin.needs_base:
             key += (self.rest.tobytes(), self.k.tobytes())
-        return _kept_columns(cache, key, lambda: plugin.basis(self))
+        return cache.get(key, lambda: plugin.basis(self))
 
     @cached_property
     def sums(self):
@@ -262,53 +264,31 @@ SELECTIONS_KEPT = 4   # frame selections whose states state_frames keeps per dat
 COLUMNS_BYTES_KEPT = 2 ** 28   # plug-in columns kept per data (most recently used first)
 
 
-def _read_only(arrays):
-    for array in arrays:
-        array.flags.writeable = False   # shared: nobody may change them
-    return arrays
+def _kept(data, name, **bounds):
+    """The :class:`~replication.cache.KeptArrays` ``name`` of ``data``, made on first use."""
+    if name not in data.cache:
+        data.cache[name] = KeptArrays(**bounds)
+    return data.cache[name]
 
 
-def _recorded_states(data, key, frames):
+def _recorded_states(data, frames):
     """Positions, velocities and spring sums of the recorded ``frames`` (all frames when
-    ``key`` is None), computed once and kept in ``data.cache``: read-only, shared by every
-    base model's states. Of the frame selections, the :data:`SELECTIONS_KEPT` most recently
-    used are kept (a least-squares fit asks for the same frames hundreds of times)."""
-    kept = data.cache.setdefault("states", {})
-    if key in kept:
-        kept[key] = kept.pop(key)   # most recently used last
-        return kept[key]
-    if key is None:
-        x, v = data.x, data.v
-        states = (x, v, _read_only(geometry.spring_sums(data.ops, x)))
-    else:
+    None), computed once and kept in ``data.cache``, shared by every base model's states.
+    Those of all frames are kept for good; of the frame selections (read-only copies), the
+    :data:`SELECTIONS_KEPT` most recently used (a least-squares fit asks for the same frames
+    hundreds of times)."""
+    if frames is None:
+        if "states" not in data.cache:
+            data.cache["states"] = (data.x, data.v,
+                                    read_only(geometry.spring_sums(data.ops, data.x)))
+        return data.cache["states"]
+
+    def states():
         x = data.x[frames]
-        states = (*_read_only((x, data.v[frames])), _read_only(geometry.spring_sums(data.ops, x)))
-    kept[key] = states
-    selections = [k for k in kept if k is not None]
-    for old in selections[:-SELECTIONS_KEPT]:
-        del kept[old]
-    return states
+        return x, data.v[frames], geometry.spring_sums(data.ops, x)
 
-
-def _kept_columns(cache, key, make):
-    """Plug-in columns named by ``key`` (plug-in, frames and, when they depend on it, the
-    base model), made by ``make()`` once and kept read-only in ``cache`` while the kept
-    columns take at most :data:`COLUMNS_BYTES_KEPT` (the newest are always kept)."""
-    kept = cache.setdefault("columns", {})
-    if key in kept:
-        kept[key] = kept.pop(key)
-        return kept[key]
-    columns = make()
-    if not isinstance(columns, np.ndarray) or columns.base is not None:
-        columns = np.array(columns, dtype=float)   # own its memory before it is shared
-    columns.flags.writeable = False
-    kept[key] = columns
-    total = sum(c.nbytes for c in kept.values())
-    for old in list(kept)[:-1]:
-        if total <= COLUMNS_BYTES_KEPT:
-            break
-        total -= kept.pop(old).nbytes
-    return columns
+    selections = _kept(data, "selections", max_entries=SELECTIONS_KEPT)
+    return selections.get(frames.tobytes(), states)
 
 
 def state_frames(data, base, frames=None):
@@ -319,17 +299,18 @@ def state_frames(data, base, frames=None):
     (:func:`_recorded_states`) and shared by every base model's states, and so are the
     plug-in columns computed on them (:meth:`StateFrames.columns`).
     """
-    if frames is None:
-        key = None
-    else:
+    if frames is not None:
         frames = np.asarray(frames)
+        if frames.ndim != 1:
+            raise ValueError(f"frames of shape {frames.shape}: expected a 1-D index array "
+                             "or mask")
         if frames.dtype == bool:
             frames = np.flatnonzero(frames)
         frames = frames.astype(np.intp, copy=False)
-        key = frames.tobytes()
-    x, v, sums = _recorded_states(data, key, frames)
+    x, v, sums = _recorded_states(data, frames)
+    columns = _kept(data, "columns", max_bytes=COLUMNS_BYTES_KEPT)
     return StateFrames(x, v, data.ops, data.mass, base.rest, base.k, data.scene.damping,
-                       sums=sums, memo=(data.cache, key))
+                       sums=sums, memo=(columns, None if frames is None else frames.tobytes()))
 
 
 def design(data, base, plugins, model, frames=None):

@@ -151,8 +151,7 @@ def test_spring_sums_of_a_frame_selection_are_kept_for_the_last_few_selections()
         first[1][0, 0, 0, 0] = 1.0
     for start in range(regression.SELECTIONS_KEPT):   # newer selections push it out
         regression.state_frames(data, base, [10 + start])
-    kept = [key for key in data.cache["states"] if key is not None]
-    assert len(kept) == regression.SELECTIONS_KEPT
+    assert len(data.cache["selections"]) == regression.SELECTIONS_KEPT
     later = regression.state_frames(data, base, [5, 9]).sums
     assert later[0] is not first[0] and np.array_equal(later[0], first[0])
 
@@ -167,6 +166,15 @@ def test_recorded_positions_of_a_frame_selection_are_kept_read_only():
     with pytest.raises(ValueError):
         first.x[0, 0, 0] = 1.0
     assert regression.state_frames(data, base).x is data.x   # all frames: the data's own
+
+
+@pytest.mark.parametrize("frames", [np.array(5), np.array([[5, 9]]), np.array([[True]])])
+def test_frames_that_are_not_one_dimensional_are_refused(frames):
+    data = regression.prepare(read_trajectory("synthetic_data/cloth/reference_tau0.1.npz"))
+    base = regression.BaseModel(np.full(6, data.h), np.full(6, 4.0), np.full(6, 0.1))
+    regression.state_frames(data, base, frames.ravel()[:1].astype(np.intp))   # kept: 1-D
+    with pytest.raises(ValueError, match="1-D"):
+        regression.state_frames(data, base, frames)
 
 
 def test_plugin_columns_are_computed_once_per_frames_and_per_base_when_they_need_it():
@@ -202,10 +210,11 @@ def test_kept_plugin_columns_stay_within_their_byte_bound(monkeypatch):
     data = regression.prepare(read_trajectory("synthetic_data/cloth/reference_tau0.1.npz"))
     base = regression.BaseModel(np.full(6, data.h), np.full(6, 4.0), np.full(6, 0.1))
     plugin = regression.Plugin("drag", effects.LIBRARY["quadratic_drag"].basis)
-    one = regression.state_frames(data, base, [5]).columns(plugin).nbytes
+    one = plugin.basis(regression.StateFrames(data.x[[5]], data.v[[5]], data.ops, data.mass,
+                                              base.rest, base.k)).nbytes
     monkeypatch.setattr(regression, "COLUMNS_BYTES_KEPT", 2 * one)
-    for frame in range(6, 12):
+    for frame in range(5, 12):
         regression.state_frames(data, base, [frame]).columns(plugin)
     kept = data.cache["columns"]
-    assert sum(c.nbytes for c in kept.values()) <= 2 * one and len(kept) == 2
-    assert [key[2] for key in kept] == [np.array([f], np.intp).tobytes() for f in (10, 11)]
+    assert kept.nbytes <= 2 * one and len(kept) == 2
+    assert [key[2] for key in kept.keys()] == [np.array([f], np.intp).tobytes() for f in (10, 11)]

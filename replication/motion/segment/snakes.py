@@ -17,11 +17,10 @@ after ``iterations``.
 
 from __future__ import annotations
 
-import threading
-from collections import OrderedDict
-
 import numba
 import numpy as np
+
+from replication.cache import KeptArrays
 
 
 def support(data, xi, eta, omega, *, tolerance=0.3, ambiguous=0.15, empty_cost=0.2,
@@ -68,9 +67,8 @@ def _coordinates(height, width):
     return (np.arange(height, dtype=float)[:, None], np.arange(width, dtype=float)[None, :])
 
 
-_POLAR = OrderedDict()
-_POLAR_LOCK = threading.Lock()
 POLAR_CACHE_BYTES = 64 << 20   # the maps of 64 centres on 256 x 256 frames
+_POLAR = KeptArrays(max_bytes=POLAR_CACHE_BYTES)
 
 
 def polar(shape, x, y, n_sectors):
@@ -82,26 +80,18 @@ def polar(shape, x, y, n_sectors):
     maps were about half of a snake's time.
     """
     key = (tuple(int(v) for v in shape), float(x), float(y), int(n_sectors))
-    with _POLAR_LOCK:
-        if key in _POLAR:
-            _POLAR.move_to_end(key)
-            return _POLAR[key]
-    (height, width), x, y, n_sectors = key
-    rows, cols = _coordinates(height, width)
-    # full (H, W) operands, as np.mgrid gave: numpy may take another (SIMD) loop for
-    # hypot and arctan2 on broadcast ones, with other last bits
-    dx, dy = np.repeat(cols - x, height, axis=0), np.repeat(rows - y, width, axis=1)
-    rho = np.hypot(dx, dy)
-    sector = (np.floor((np.arctan2(dy, dx) + np.pi) / (2 * np.pi) * n_sectors)
-              .astype(np.int64) % n_sectors)
-    rho.flags.writeable = sector.flags.writeable = False
-    with _POLAR_LOCK:
-        _POLAR[key] = rho, sector
-        total = sum(a.nbytes + b.nbytes for a, b in _POLAR.values())
-        while total > POLAR_CACHE_BYTES and len(_POLAR) > 1:
-            old_rho, old_sector = _POLAR.popitem(last=False)[1]
-            total -= old_rho.nbytes + old_sector.nbytes
-    return rho, sector
+
+    def maps():
+        (height, width), x, y, n_sectors = key
+        rows, cols = _coordinates(height, width)
+        # full (H, W) operands, as np.mgrid gave: numpy may take another (SIMD) loop for
+        # hypot and arctan2 on broadcast ones, with other last bits
+        dx, dy = np.repeat(cols - x, height, axis=0), np.repeat(rows - y, width, axis=1)
+        sector = (np.floor((np.arctan2(dy, dx) + np.pi) / (2 * np.pi) * n_sectors)
+                  .astype(np.int64) % n_sectors)
+        return np.hypot(dx, dy), sector
+
+    return _POLAR.get(key, maps)
 
 
 def sector_profiles(score, x, y, *, n_sectors=64, rho_max=120):

@@ -72,7 +72,16 @@ class KeptArrays:
         return self._bytes
 
     def get(self, key, make):
-        """The value kept for ``key``, or ``make()`` frozen and kept."""
+        """The value kept for ``key``, or ``make()`` frozen and kept.
+
+        Parameters
+        ----------
+        key : hashable
+            Names the value: everything it depends on.
+        make : callable
+            ``make()`` returns the value (an array, or a tuple of arrays, nested), called
+            only when ``key`` is not kept.
+        """
         with self._lock:
             if key in self._values:
                 self._values.move_to_end(key)

@@ -268,8 +268,10 @@ def test_joblib_job_of_an_experiment_with_worker_processes_starts_them(tmp_path)
     processes of an experiment's own pool (cloth_baselines, workers: 2) could not find: every
     job ended in "cannot find context for 'loky'" tracebacks. They now start, and give the
     answers of a plain run. One job is enough: with n_jobs=2 joblib runs even a single job
-    in a loky worker (only n_jobs=1 runs it in the launching process)."""
+    in a loky worker (only n_jobs=1 runs it in the launching process). One optimiser on the
+    two references is two runs, enough for the experiment's pool of two processes."""
     study = ["experiment=cloth_baselines", "n_seeds=1", "budgets=[30]",
+             "optimisers=[{name: GA, kind: pymoo, algorithm: ga, options: {pop_size: 10}}]",
              f"figure_dir={tmp_path / 'figures'}"]
     swept, plain, _ = swept_and_plain(tmp_path, study, ["seed=3"],
                                    ["hydra/launcher=joblib", "hydra.launcher.n_jobs=2"])

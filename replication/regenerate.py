@@ -37,7 +37,7 @@ from replication.interrupts import interruptible
 from replication.machine import reference_seconds
 from replication.progress import ENVIRONMENT, MODES, bar, check_environment, mode_for
 from replication.provenance import PROJECT_ROOT, inputs_hash, run_provenance
-from replication.report.build import CONFIG_DIR, build_report, experiment_entries
+from replication.report.build import CONFIG_DIR, PARTS, build_report, experiment_entries
 from replication.results import read_result_or_none
 from replication.workers import shared_threads
 
@@ -424,6 +424,10 @@ def _main(argv=None):
     parser = argparse.ArgumentParser(prog="replicate-all", description=main.__doc__)
     parser.add_argument("--force", action="store_true", help="recompute every result")
     parser.add_argument("--only", default=None, help="comma-separated experiment names")
+    parser.add_argument("--part", default=None,
+                        help="comma-separated parts of the report (each experiment's "
+                             f"report.part): {', '.join(PARTS)}; e.g. --part paper "
+                             "regenerates the paper's own figures and tables")
     parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1,
                         help="experiments run at once (default: the number of CPUs)")
     parser.add_argument("--quiet", action="store_true",
@@ -464,6 +468,22 @@ def _main(argv=None):
         print(f"error: --only={args.only!r}: no experiment named; expected NAME[,NAME] "
               "(leave --only out to regenerate everything)", file=sys.stderr)
         return 2
+    parts = []
+    if args.part is not None:
+        if args.only is not None:
+            print("error: --only and --part: give one of them", file=sys.stderr)
+            return 2
+        parts = [part for part in args.part.split(",") if part]
+        unknown = sorted(set(parts) - set(PARTS))
+        if not parts or unknown:
+            print(f"error: --part={args.part!r}: expected PART[,PART] of "
+                  f"{', '.join(PARTS)}", file=sys.stderr)
+            return 2
+        only = {name for name, block in blocks.items() if block.get("part") in parts}
+        if not only:
+            print(f"error: --part={args.part!r}: no experiment config has that report.part",
+                  file=sys.stderr)
+            return 2
     unknown = only - set(blocks)
     if unknown:
         from replication.cli import available_experiments
@@ -552,11 +572,17 @@ def _main(argv=None):
     cache_path.write_text(json.dumps(cache, indent=1, sort_keys=True))
     record = {"total_seconds": time.perf_counter() - start, "experiments": timings,
               "cpu_seconds": cpu, "jobs": args.jobs, "cpu_count": os.cpu_count(),
-              "forced": args.force, "only": sorted(only), "failures": failures,
+              "forced": args.force, "only": sorted(only), "parts": parts,
+              "failures": failures,
               "machine_reference_seconds": reference}
     (results / "regenerate.json").write_text(json.dumps(record, indent=1) + "\n")
-    if not only and not failures and "up to date" not in timings.values():
-        (results / "regenerate-full.json").write_text(json.dumps(record, indent=1) + "\n")
+    if not failures and "up to date" not in timings.values():
+        if not only:
+            (results / "regenerate-full.json").write_text(json.dumps(record, indent=1) + "\n")
+        elif parts:   # every experiment of these parts recomputed
+            name = "+".join(part for part in PARTS if part in parts)
+            (results / f"regenerate-part-{name}.json").write_text(
+                json.dumps(record, indent=1) + "\n")
     for name in gathered:  # gatherers read the records above, so they run last, always
         command = replicate_command(results)(name)
         if subprocess.run(command, cwd=PROJECT_ROOT, check=False).returncode != 0:

@@ -65,3 +65,24 @@ def test_speed_summary_shows_the_machine_reference_of_each_run(tmp_path):
                                            tmp_path)).markdown
     assert "s when these figures were gathered" in text
     assert "at the start of the last full regeneration" not in text
+
+
+def test_speed_summary_splits_the_regeneration_by_part(tmp_path):
+    """CPU time per part of the report (each experiment's report.part), and the last forced
+    regeneration of a part alone, from regenerate-part-PART.json."""
+    _write(tmp_path / "regenerate-full.json",
+           {"total_seconds": 500.0, "cpu_count": 2, "experiments": {},
+            "cpu_seconds": {"fig08_mesh": 30.0, "table1_2": 10.0,
+                            "cloth_baselines_budgets": 900.0, "not_a_config": 4.0}})
+    _write(tmp_path / "regenerate-part-paper.json",
+           {"total_seconds": 70.0, "cpu_count": 2, "cpu_seconds": {"fig08_mesh": 33.0,
+                                                                   "table1_2": 11.0}})
+    result = gather_benchmarks({"results_dir": str(tmp_path), "goals": {}}, tmp_path)
+    assert result["metrics"]["last_regeneration_of_paper_seconds"] == 70.0
+    text = speed_section(result).markdown
+    assert "| `paper`: the paper's figures and tables | 2 | 40 | 20 |" in text
+    assert "| `baselines`: the baselines on the paper's problems | 1 | 900 | 450 |" in text
+    assert "| `None`: no part given | 1 | 4 | 2 |" in text
+    assert "`validation`" not in text   # no experiment of that part ran
+    assert ("The last forced regeneration of the part(s) paper alone took 70 s on 2 CPUs, "
+            "44 s of CPU.") in text

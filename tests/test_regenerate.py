@@ -379,3 +379,36 @@ def test_dry_run_says_why_each_experiment_would_run_and_writes_nothing(tmp_path,
     assert "fig08_mesh: would run (--force;" in capsys.readouterr().out
     assert main(["--only", "nope", "--results", str(tmp_path / "other")]) == 2
     assert not (tmp_path / "other").exists()
+
+
+def test_every_report_block_names_its_part():
+    from replication.report.build import PARTS
+
+    parts = {name: block.get("part") for _, name, block in experiment_entries()}
+    assert {name: part for name, part in parts.items() if part not in PARTS} == {}
+    assert {part for part in parts.values()} == set(PARTS)
+
+
+def test_part_selects_the_experiments_of_a_part_of_the_report(tmp_path, capsys):
+    """`replicate-all --part paper` is `--only` with the experiments whose report.part is
+    paper; a part that is not one, an empty list or --part with --only is one error line."""
+    from replication.regenerate import main
+
+    paper = sorted(name for _, name, block in experiment_entries()
+                   if block.get("part") == "paper")
+    assert "fig08_mesh" in paper and "cloth_baselines_budgets" not in paper
+    assert main(["--dry-run", "--force", "--part", "paper",
+                 "--results", str(tmp_path / "res")]) == 0
+    out = capsys.readouterr().out
+    running = sorted(line.split(":")[0] for line in out.splitlines() if ": would run" in line)
+    assert running == paper
+    assert f"{len(paper)} experiment(s) would run" in out
+    for argv, message in ((["--part", "nope"], "--part='nope': expected PART[,PART] of "
+                           "paper, baselines, validation, bench"),
+                          (["--part", ","], "--part=',': expected PART"),
+                          (["--part", "paper", "--only", "fig08_mesh"],
+                           "--only and --part: give one of them")):
+        assert main([*argv, "--results", str(tmp_path / "other")]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(f"error: {message}") and err.count("\n") == 1, err
+    assert not (tmp_path / "other").exists()

@@ -1,8 +1,9 @@
 """REPORT.md, written from results (never by hand).
 
-Every experiment config may carry a ``report`` block: ``order``, ``title`` and ``section``
-(``module:function``). The section function receives the experiment's ``result.json`` as
-a dict and returns a :class:`Section`: markdown, and rows for the summary table at the top.
+Every experiment config may carry a ``report`` block: ``part`` (one of :data:`PARTS`),
+``order``, ``title`` and ``section`` (``module:function``). The section function receives
+the experiment's ``result.json`` as a dict and returns a :class:`Section`: markdown, and
+rows for the summary table at the top.
 """
 
 from __future__ import annotations
@@ -19,6 +20,11 @@ from replication.provenance import PROJECT_ROOT
 from replication.results import read_result_or_none
 
 CONFIG_DIR = PROJECT_ROOT / "configs" / "experiment"
+# what part of the report an experiment belongs to (its report.part), in report order
+PARTS = {"paper": "the paper's figures and tables",
+         "baselines": "the baselines on the paper's problems",
+         "validation": "validation beyond the paper (outside data, sensitivity, noise, CI)",
+         "bench": "benchmarks"}
 
 
 @dataclass
@@ -179,6 +185,7 @@ def speed_section(result):
     lines += _reference_lines(result["metrics"].get("machine_reference_seconds"), sources)
     lines += _regeneration_lines(sources.get("last_full_regeneration"))
     lines += _bound_lines(sources.get("last_full_regeneration"), sources.get("time_split"))
+    lines += _part_lines(sources.get("last_full_regeneration"), sources)
     return Section("\n".join(lines), rows)
 
 
@@ -201,6 +208,33 @@ def _bound_lines(record, split):
             f"shrink to about {cpu[name] * share:.0f} s, and the regeneration would still use "
             f"{rest:.0f} s of CPU: at least {rest / record['cpu_count']:.0f} s on "
             f"{record['cpu_count']} CPUs."]
+
+
+def _part_lines(record, sources):
+    """The last full regeneration's CPU time by part of the report (``report.part``), and
+    the last forced regeneration of parts alone (``replicate-all --force --part``)."""
+    if not record or not record.get("cpu_count") or not record.get("cpu_seconds"):
+        return []
+    part_of = {name: block.get("part") for _, name, block in experiment_entries()}
+    cpu, cpus = record["cpu_seconds"], record["cpu_count"]
+    lines = ["", "| part of the report (`report.part`) | experiments | CPU (s) | at least, on "
+             f"{cpus} CPUs (s) |", "|---|---|---|---|"]
+    for part, what in [*PARTS.items(), (None, "no part given")]:
+        names = [name for name in cpu if part_of.get(name) == part]
+        if names:
+            total = sum(cpu[name] for name in names)
+            lines.append(f"| `{part}`: {what} | {len(names)} | {total:.0f} | "
+                         f"{total / cpus:.0f} |")
+    lines += ["", "CPU time of each part in the last full regeneration; a regeneration of "
+              "parts alone (`replicate-all --force --part paper[,baselines,...]`) cannot "
+              "take less than its CPU time divided by the CPUs."]
+    for label, part_record in sources.items():
+        if label.startswith("last_regeneration_of_") and part_record.get("total_seconds"):
+            parts = label.removeprefix("last_regeneration_of_").replace("+", ", ")
+            lines.append(f"The last forced regeneration of the part(s) {parts} alone took "
+                         f"{part_record['total_seconds']:.0f} s on {part_record['cpu_count']}"
+                         f" CPUs, {sum(part_record['cpu_seconds'].values()):.0f} s of CPU.")
+    return lines
 
 
 def _reference_lines(now, sources):

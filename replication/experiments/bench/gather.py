@@ -3,9 +3,10 @@
 Gathers the ``metrics`` of the area benchmarks (``bench_*`` experiments, run before it by
 ``replicate-all``), the last full test-suite run (``results/tests.json``, written by the
 test suite itself), the last full regeneration (``results/regenerate-full.json``,
-written when ``replicate-all`` recomputed every result), how much of the baselines
-study's run time (``time_split``) is spent inside the cost, and the seconds of the
-reference workload of :mod:`replication.machine` now.
+written when ``replicate-all`` recomputed every result) and that of parts of the report
+(``regenerate-part-PARTS.json``, ``replicate-all --force --part PARTS``), how much of the
+baselines study's run time (``time_split``) is spent inside the cost, and the seconds of
+the reference workload of :mod:`replication.machine` now.
 """
 
 from __future__ import annotations
@@ -48,6 +49,13 @@ def gather_benchmarks(config, out):
             record = json.loads(path.read_text())
             metrics[f"{label}_seconds"] = record.get(key)
             sources[label] = record
+    # the last forced regeneration of some parts of the report alone (replicate-all
+    # --force --part paper writes regenerate-part-paper.json)
+    for path in sorted(results_dir.glob("regenerate-part-*.json")):
+        label = f"last_regeneration_of_{path.stem.removeprefix('regenerate-part-')}"
+        record = json.loads(path.read_text())
+        metrics[f"{label}_seconds"] = record.get("total_seconds")
+        sources[label] = record
     # the machine's speed now, beside those of the regeneration and test runs (timings of
     # different runs compare through it)
     metrics["machine_reference_seconds"] = reference_seconds()

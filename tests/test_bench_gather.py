@@ -82,7 +82,7 @@ def test_speed_summary_splits_the_regeneration_by_part(tmp_path):
     text = speed_section(result).markdown
     assert "| `paper`: the paper's figures and tables | 2 | 40 | 20 |" in text
     assert "| `baselines`: the baselines on the paper's problems | 1 | 900 | 450 |" in text
-    assert "| `None`: no part given | 1 | 4 | 2 |" in text
+    assert "| no `report.part` | 1 | 4 | 2 |" in text
     assert "`validation`" not in text   # no experiment of that part ran
     assert ("The last forced regeneration of the part(s) paper alone took 70 s on 2 CPUs, "
             "44 s of CPU.") in text

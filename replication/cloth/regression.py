@@ -49,10 +49,10 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.signal import savgol_filter
 
+from replication.cache import KeptArrays, read_only
 from replication.cloth import geometry, kernels
 from replication.cloth.costs import ClothCost, structural_length
 from replication.cloth.mesh import FAMILY_OF_TYPE, N_TYPES, type_lengths
-from replication.cache import KeptArrays, read_only
 from replication.cloth.model import ClothParams, step
 from replication.errors import InputError
 from replication.optim.scan import zoom

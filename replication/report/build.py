@@ -219,12 +219,12 @@ def _part_lines(record, sources):
     cpu, cpus = record["cpu_seconds"], record["cpu_count"]
     lines = ["", "| part of the report (`report.part`) | experiments | CPU (s) | at least, on "
              f"{cpus} CPUs (s) |", "|---|---|---|---|"]
-    for part, what in [*PARTS.items(), (None, "no part given")]:
+    for part, what in [*PARTS.items(), (None, None)]:
         names = [name for name in cpu if part_of.get(name) == part]
         if names:
             total = sum(cpu[name] for name in names)
-            lines.append(f"| `{part}`: {what} | {len(names)} | {total:.0f} | "
-                         f"{total / cpus:.0f} |")
+            label = f"`{part}`: {what}" if part else "no `report.part`"
+            lines.append(f"| {label} | {len(names)} | {total:.0f} | {total / cpus:.0f} |")
     lines += ["", "CPU time of each part in the last full regeneration; a regeneration of "
               "parts alone (`replicate-all --force --part paper[,baselines,...]`) cannot "
               "take less than its CPU time divided by the CPUs."]

@@ -47,7 +47,6 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 from scipy.optimize import least_squares
-from scipy.signal import savgol_filter
 
 from replication.cache import KeptArrays, read_only
 from replication.cloth import geometry, kernels
@@ -207,6 +206,8 @@ def smoothed(trajectory, window, polyorder=3):
     """
     if window == 0 or window > trajectory.n_frames:
         return trajectory
+    from scipy.signal import savgol_filter   # here: scipy.signal takes about 1 s to import
+
     positions = savgol_filter(trajectory.flat_positions(), window, polyorder, axis=0)
     free = trajectory.scene().free
     positions[:, ~free] = trajectory.flat_positions()[:, ~free]

@@ -15,7 +15,6 @@ from replication.cloth.identify.ea import EASettings, PaperEA
 from replication.cloth.identify.structured import check_settings as check_structured
 from replication.cloth.identify.structured import structured_identify
 from replication.errors import InputError, check
-from replication.optim.pymoo_adapters import ALGORITHMS, run_pymoo
 from replication.optim.scipy_adapters import run_least_squares
 from replication.provenance import PROJECT_ROOT
 
@@ -45,6 +44,9 @@ def _structured(objective, trajectory, space, *, rng, seed, settings):
 
 
 def _pymoo(objective, trajectory, space, *, rng, seed, settings):
+    # pymoo is imported by the runs that use it (it takes about a second to import)
+    from replication.optim.pymoo_adapters import run_pymoo
+
     return run_pymoo(objective, settings["algorithm"], seed=seed,
                      options=settings.get("options"))
 
@@ -62,6 +64,8 @@ def check_solver(kind, settings):
     """Refuse an unknown ``kind`` or a pymoo algorithm or paper-EA settings that cannot run."""
     check(kind in SOLVERS, f"method={kind!r}: expected one of {', '.join(SOLVERS)}")
     if kind == "pymoo":
+        from replication.optim.pymoo_adapters import ALGORITHMS
+
         check(settings.get("algorithm") in ALGORITHMS,
               f"algorithm={settings.get('algorithm')!r}; expected one of "
               f"{', '.join(ALGORITHMS)}")

@@ -38,8 +38,12 @@ SCRIPT = textwrap.dedent("""
 
 
 def run(script):
+    # SIGINT as in a terminal: a shell starts background jobs (`bash run.sh test &`, nohup)
+    # with SIGINT ignored, their children inherit that, and Python then installs no
+    # handler: the signal would be lost before interruptible could see it
     return subprocess.run([sys.executable, "-c", script], cwd=ROOT, capture_output=True,
-                          text=True, timeout=60)
+                          text=True, timeout=60,
+                          preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
 
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])

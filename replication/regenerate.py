@@ -575,14 +575,14 @@ def _main(argv=None):
               "forced": args.force, "only": sorted(only), "parts": parts,
               "failures": failures,
               "machine_reference_seconds": reference}
-    (results / "regenerate.json").write_text(json.dumps(record, indent=1) + "\n")
+    text = json.dumps(record, indent=1) + "\n"
+    (results / "regenerate.json").write_text(text)
     if not failures and "up to date" not in timings.values():
         if not only:
-            (results / "regenerate-full.json").write_text(json.dumps(record, indent=1) + "\n")
+            (results / "regenerate-full.json").write_text(text)
         elif parts:   # every experiment of these parts recomputed
             name = "+".join(part for part in PARTS if part in parts)
-            (results / f"regenerate-part-{name}.json").write_text(
-                json.dumps(record, indent=1) + "\n")
+            (results / f"regenerate-part-{name}.json").write_text(text)
     for name in gathered:  # gatherers read the records above, so they run last, always
         command = replicate_command(results)(name)
         if subprocess.run(command, cwd=PROJECT_ROOT, check=False).returncode != 0:

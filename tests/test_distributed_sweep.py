@@ -245,12 +245,57 @@ def test_dask_sweep_with_a_failing_job_exits_2_and_keeps_the_other_jobs(tmp_path
     assert not (folder / "budget=50,data.path=README.md,method=paper_ea").exists()
 
 
+def test_finished_yields_jobs_as_they_end_and_stops_when_none_comes_back():
+    """The launcher's wait (``stall_seconds``): each future as it finishes, failed ones
+    too, then ``JobsStalled`` with the futures left when none finished in time (a job that
+    hung, seen once in a test on a running cluster: the sweep waited until pytest's
+    timeout)."""
+    from distributed import Client
+
+    from hydra_plugins.replication_dask_launcher.dask_launcher import JobsStalled, finished
+
+    with Client(processes=False, n_workers=1, threads_per_worker=3,
+                dashboard_address=":0") as client:
+        slow = client.submit(time.sleep, 0.6, pure=False)
+        fails = client.submit(int, "x", pure=False)
+        quick = client.submit(time.sleep, 0.0, pure=False)
+        futures = [slow, fails, quick]
+        assert set(finished(futures, stall_seconds=None)) == set(futures)
+        hangs = client.submit(time.sleep, 30, pure=False)
+        futures = [quick, hangs]
+        seen = []
+        with pytest.raises(JobsStalled) as stalled:
+            for future in finished(futures, stall_seconds=0.3):
+                seen.append(future)
+        assert seen == [quick] and stalled.value.left == [hangs]
+        client.cancel([hangs], force=True)
+
+
+def test_dask_sweep_whose_jobs_stop_coming_back_ends_with_one_line(tmp_path, dask_cluster):
+    """``hydra.launcher.stall_seconds``: a sweep whose jobs no longer come back ends with one
+    error line and status 2 instead of waiting for ever. Here the limit is far below one
+    job's time, so the first job counts as hung."""
+    scheduler_file, _ = dask_cluster
+    done = run_cli("-m", "experiment=cloth_identify", "method=paper_ea", "budget=50",
+                   "seed=0", "hydra/launcher=dask", f"hydra.launcher.address={scheduler_file}",
+                   "hydra.launcher.stall_seconds=0.05", f"hydra.sweep.dir={tmp_path / 'sweep'}")
+    assert done.returncode == 2, done.stderr[-3000:]
+    errors = [line for line in done.stderr.splitlines() if line.startswith("error: ")]
+    assert len(errors) == 1 and "no job of the sweep finished within hydra.launcher." \
+        "stall_seconds=0.05 s; 1 of 1 job(s) still running or waiting (the first: " \
+        "experiment=cloth_identify" in errors[0] and "resume=true" in errors[0], done.stderr
+    assert "runs on until it ends" in errors[0] and "Traceback" not in done.stderr
+
+
 @pytest.mark.parametrize("setting, message", [
     ("hydra.launcher.n_workers=0", "hydra.launcher.n_workers=0: expected an integer >= 1"),
     ("hydra.launcher.n_workers=abc", "hydra.launcher.n_workers='abc': expected an integer"),
     ("hydra.launcher.address=absent_scheduler.json", "no such scheduler file"),
     ("hydra.launcher.address=nonsense", "hydra.launcher.address=nonsense: not an address"),
     ("hydra.launcher.memory_limit=abc", "hydra.launcher.memory_limit='abc': not a size"),
+    ("hydra.launcher.stall_seconds=0", "hydra.launcher.stall_seconds=0: expected a number "
+     "of seconds > 0"),
+    ("hydra.launcher.stall_seconds=abc", "hydra.launcher.stall_seconds='abc': expected"),
 ])
 def test_dask_settings_it_cannot_use_are_one_error_line(tmp_path, setting, message):
     done = run_cli("-m", "experiment=fig08_mesh", "zoom=3,4", "hydra/launcher=dask",

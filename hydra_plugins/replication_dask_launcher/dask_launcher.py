@@ -89,6 +89,37 @@ class TailedStream(io.TextIOBase):
 CONNECT_SECONDS = 10   # how long to wait for a remote scheduler
 
 
+class JobsStalled(Exception):
+    """No job of the sweep finished within the allowed time; ``left`` holds the futures
+    still running or waiting."""
+
+    def __init__(self, left):
+        super().__init__(f"{len(left)} job(s) left")
+        self.left = left
+
+
+def finished(futures, stall_seconds=None):
+    """Yield each of ``futures`` as it finishes (with a result, an error or cancelled),
+    in the order they finish.
+
+    Raises :class:`JobsStalled` when none of the futures still pending finishes within
+    ``stall_seconds`` (``None``: wait for ever). While a worker runs jobs of the sweep, one
+    of them finishes at the latest one job's duration after the last did, so a limit above
+    the longest job's time only stops a sweep whose jobs no longer come back (a hung job,
+    a worker that no longer answers).
+    """
+    from distributed import wait
+
+    pending = set(futures)
+    while pending:
+        try:
+            done, pending = wait(list(pending), timeout=stall_seconds,
+                                 return_when="FIRST_COMPLETED")
+        except TimeoutError:
+            raise JobsStalled(sorted(pending, key=futures.index)) from None
+        yield from sorted(done, key=futures.index)
+
+
 def quiet_distributed_logs() -> None:
     """Keep ``distributed``'s own loggers to critical messages in this process. Run on each
     worker of the launcher's local cluster once its jobs are gathered: a worker's heartbeat
@@ -189,13 +220,18 @@ class DaskLauncher(Launcher):
     memory_limit : str or None
         Memory limit of each local worker (Dask's spelling, ``"4GiB"``; ``None``: Dask's
         default share of the machine's memory).
+    stall_seconds : float or None
+        Stop the sweep (one error line, status 2) when no job has finished for this long
+        (:func:`finished`); ``None``: wait for ever. Set it above the longest job's time.
     """
 
     def __init__(self, address: Optional[str] = None, n_workers: int = 2,
-                 memory_limit: Optional[str] = None) -> None:
+                 memory_limit: Optional[str] = None,
+                 stall_seconds: Optional[float] = None) -> None:
         self.address = address
         self.n_workers = n_workers   # checked when the sweep starts (one error line)
         self.memory_limit = memory_limit
+        self.stall_seconds = stall_seconds
         self.config: Optional[DictConfig] = None
         self.task_function: Optional[TaskFunction] = None
         self.hydra_context: Optional[HydraContext] = None
@@ -209,10 +245,22 @@ class DaskLauncher(Launcher):
         # folder's multirun.yaml (which replicate-gather reads as the last sweep): a remote
         # scheduler must answer now; each launch (a sweeper may launch several batches)
         # connects again and closes its own client
+        self._check_stall()
         if self.address:
             self._connect_remote().close()
         else:
             self._check_local()
+
+    def _check_stall(self):
+        """``stall_seconds``: null or a number > 0, or one error line."""
+        value = self.stall_seconds
+        if value is None:
+            return
+        if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                or not value > 0 or value == float("inf"):
+            _refuse(f"hydra.launcher.stall_seconds={value!r}: expected a number of seconds "
+                    "> 0 (stop the sweep when no job has finished for that long), or null "
+                    "to wait for ever")
 
     def _connect_remote(self):
         """A ``distributed.Client`` on the configured scheduler, or one error line."""
@@ -287,7 +335,6 @@ class DaskLauncher(Launcher):
                            cwd=os.getcwd(), environment=environment)
         from concurrent.futures import CancelledError
 
-        from distributed import as_completed
         from distributed.scheduler import KilledWorker
 
         from replication.progress import bar, mode_for
@@ -304,9 +351,22 @@ class DaskLauncher(Launcher):
             try:
                 with mode_for(OmegaConf.select(self.config, "progress")), \
                         bar(len(futures), "sweep jobs") as jobs:
-                    for _ in as_completed(futures):
+                    for _ in finished(futures, self.stall_seconds):
                         jobs.update()
                 done = client.gather(futures)
+            except JobsStalled as stalled:
+                client.cancel(stalled.left, force=True)
+                first = job_overrides[futures.index(stalled.left[0])]
+                _refuse(f"no job of the sweep finished within hydra.launcher.stall_seconds="
+                        f"{self.stall_seconds} s; {len(stalled.left)} of {len(futures)} "
+                        f"job(s) still running or waiting (the first: "
+                        f"{' '.join(first) or 'no overrides'}): a job hangs or needs longer "
+                        "(raise stall_seconds, or null to wait for ever); the jobs that "
+                        "finished kept their results, and resume=true re-runs only the "
+                        "missing ones" + ("" if cluster is not None else
+                                          "; a job still running on a worker of your "
+                                          "cluster runs on until it ends or the worker "
+                                          "is stopped"))
             except (CancelledError, KilledWorker) as error:
                 _refuse(f"the Dask cluster lost a worker during the sweep ("
                         f"{type(error).__name__}): a job needed more memory than "

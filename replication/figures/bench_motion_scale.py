@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import matplotlib.pyplot as plt
 import numpy as np
 
 from replication.figures.style import save
@@ -22,6 +21,7 @@ def draw(path, rows, fits, multi_rows=(), multi_fits=()):
     multi_rows, multi_fits : list of dict
         The same for the segmentation (``max_centre_px``: the worst object's centre error).
     """
+    import matplotlib.pyplot as plt
     rows = list(rows) + [dict(row, method="segmentation (pyramid)",
                               centre_px=row["max_centre_px"]) for row in multi_rows
                          if row["max_centre_px"] is not None]

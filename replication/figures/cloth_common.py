@@ -7,7 +7,6 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
 
 from replication.provenance import PROJECT_ROOT  # noqa: E402
 
@@ -23,6 +22,7 @@ def save(fig, name, figure_dir="figures"):
     figure_dir : str or Path
         Folder of the file (a relative one is inside the project).
     """
+    import matplotlib.pyplot as plt
     folder = Path(figure_dir)
     if not folder.is_absolute():
         folder = PROJECT_ROOT / folder
@@ -41,5 +41,6 @@ def new_figure(n_cols, *, n_rows=1, width=5.0, height=3.8):
     width, height : float
         Inches per panel.
     """
+    import matplotlib.pyplot as plt
     return plt.subplots(n_rows, n_cols, figsize=(width * n_cols, height * n_rows),
                         squeeze=False, layout="constrained")

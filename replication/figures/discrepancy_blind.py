@@ -7,7 +7,6 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 
@@ -21,6 +20,7 @@ def plot_blind(result, path):
     path : str or Path
         The PNG written.
     """
+    import matplotlib.pyplot as plt
     summary = result["summary"]
     hidden, calls = summary["hidden"], summary["calls"]
     matrix = np.array([[summary["confusion"][e][c] for c in calls] for e in hidden])

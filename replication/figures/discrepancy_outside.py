@@ -7,7 +7,6 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 
@@ -38,6 +37,7 @@ def plot_outside(result, path):
     path : str or Path
         The PNG written.
     """
+    import matplotlib.pyplot as plt
     rows = result["datasets"]
     summary = result["summary"]
     limit = summary["detection_snr"]

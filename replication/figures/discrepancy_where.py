@@ -7,7 +7,6 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 
@@ -20,6 +19,7 @@ def plot_where(result, out_dir):
         The workflow's result (``where``, ``gap``, ``settings``).
     out_dir : str or Path
     """
+    import matplotlib.pyplot as plt
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     where = result["where"]

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import matplotlib.pyplot as plt
 import numpy as np
 
 from replication.figures.style import save
@@ -23,6 +22,7 @@ def draw(path, frame, flow, *, step=12, method="TV-L1"):
     method : str
         Name of the flow method, for the title.
     """
+    import matplotlib.pyplot as plt
     u, v = flow
     rows, cols = np.mgrid[step // 2: frame.shape[0]: step, step // 2: frame.shape[1]: step]
     fig, ax = plt.subplots(figsize=(5, 5), dpi=100)

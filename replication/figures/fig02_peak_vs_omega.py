@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import matplotlib.pyplot as plt
 import numpy as np
 
 from replication.figures.style import save
@@ -19,6 +18,7 @@ def draw(path, omega, peak, *, best=None, refined=None, truth=None):
     omega, peak : (m,) array_like
     best, refined, truth : float, optional
     """
+    import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(6, 3.5), dpi=100)
     ax.plot(omega, peak, ".-", color="black", lw=1, ms=3, label="peak of F(omega)")
     for value, colour, label in ((best, "tab:red", "best peak (paper)"),

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import matplotlib.pyplot as plt
 
 from replication.figures.style import save
 
@@ -22,6 +21,7 @@ def draw(path, acc, extent, *, peak, truth=None, omega=None):
     omega : float, optional
         For the title.
     """
+    import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(5, 5), dpi=100)
     ax.imshow(acc, cmap="inferno", extent=extent, interpolation="nearest")
     ax.plot(*peak, "+", color="cyan", ms=14, mew=1.5, label=f"peak ({peak[0]:g}, {peak[1]:g})")

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import matplotlib.pyplot as plt
 
 from replication.figures.style import save
 
@@ -19,6 +18,7 @@ def draw(path, closeness, *, region=None, label_outline=None):
     closeness : (H, W) ndarray
     region, label_outline : (H, W) bool ndarray, optional
     """
+    import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(5, 5), dpi=100)
     ax.imshow(closeness, cmap="gray", vmin=0, vmax=1, interpolation="nearest")
     if region is not None:

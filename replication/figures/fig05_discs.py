@@ -7,7 +7,6 @@ line from each disc's centre is the velocity of the disc's rotation there.
 
 from __future__ import annotations
 
-import matplotlib.pyplot as plt
 import numpy as np
 
 from replication.figures.style import save
@@ -29,6 +28,7 @@ def draw(path, frame, discs, rotating, *, tick_scale=8.0):
     rotating : (n,) bool ndarray
     tick_scale : float
     """
+    import matplotlib.pyplot as plt
     height, width = frame.shape
     fig, ax = plt.subplots(figsize=(5.5, 5.5), dpi=100)
     ax.imshow(frame, cmap="gray", vmin=0, vmax=1, interpolation="nearest")

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import matplotlib.pyplot as plt
 import numpy as np
 
 from replication.figures.style import save
@@ -22,6 +21,7 @@ def draw(path, frame, contours):
         Background image.
     contours : list of ((x, y), (K,) ndarray)
     """
+    import matplotlib.pyplot as plt
     height, width = frame.shape
     fig, ax = plt.subplots(figsize=(5.5, 5.5), dpi=100)
     ax.imshow(frame, cmap="gray", vmin=0, vmax=1, interpolation="nearest")

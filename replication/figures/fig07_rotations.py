@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import matplotlib.pyplot as plt
 import numpy as np
 
 from replication.figures.style import save
@@ -23,6 +22,7 @@ def draw(path, frame, panels, *, truth=()):
     panels : list of dict
     truth : sequence of tuple
     """
+    import matplotlib.pyplot as plt
     height, width = frame.shape
     fig, (left, right) = plt.subplots(1, 2, figsize=(10, 5), dpi=100)
     colours = plt.get_cmap("tab10")

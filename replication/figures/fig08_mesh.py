@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import matplotlib.pyplot as plt
 import numpy as np
 
 from replication.figures.style import save
@@ -44,6 +43,7 @@ def draw(path, *, positions, a, b, kind, pinned, n, zoom):
     zoom : int
         Particles per side of the corner shown.
     """
+    import matplotlib.pyplot as plt
     fig, (left, right) = plt.subplots(1, 2, figsize=(10, 5))
     x = positions[:, :2]
     structural = np.isin(kind, (0, 1))

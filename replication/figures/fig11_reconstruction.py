@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import io
 
-import matplotlib.pyplot as plt
 import numpy as np
 from PIL import Image
 
@@ -51,6 +50,7 @@ def draw(path, *, columns, titles, frames, n, dt):
     dt : float
         Time between frames (row labels).
     """
+    import matplotlib.pyplot as plt
     limits = _limits(columns)
     colours = ["black", "tab:blue", "tab:red", "tab:green"]
     fig = plt.figure(figsize=(3.2 * len(columns), 2.8 * len(frames)))
@@ -83,6 +83,7 @@ def animate(path, *, columns, titles, frames, n, dt):
     n : int
     dt : float
     """
+    import matplotlib.pyplot as plt
     limits = _limits(columns)
     colours = ["black", "tab:blue", "tab:red", "tab:green"]
     images = []

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import matplotlib.pyplot as plt
 from matplotlib import ticker
 import numpy as np
 
@@ -19,6 +18,7 @@ def draw(path, curves, *, title):
         ``{"title", "xlabel", "ylabel", "series": [{"label", "x", "y", "exponent"}]}``.
     title : str
     """
+    import matplotlib.pyplot as plt
     fig, axes = plt.subplots(1, len(curves), figsize=(4.2 * len(curves), 3.4),
                              squeeze=False, layout="constrained")
     for ax, curve in zip(axes[0], curves):

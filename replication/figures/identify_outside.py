@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from replication.figures.cloth_common import plt, save
+from replication.figures.cloth_common import save
 
 OUTCOMES = (   # (name, colour, marker, label)
     ("ok", "tab:green", "o", "within tolerance"),
@@ -39,6 +39,7 @@ def plot(by_method, rtol, out_name, figure_dir="figures"):
     out_name : str
     figure_dir : str or Path
     """
+    import matplotlib.pyplot as plt
     n = len(by_method)
     fig, grid = plt.subplots(n, 2, figsize=(12, 4.6 * n), layout="constrained",
                              squeeze=False)

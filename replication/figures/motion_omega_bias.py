@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import matplotlib.pyplot as plt
 import numpy as np
 
 from replication.figures.style import save
@@ -71,6 +70,7 @@ def draw(path, summary, predictions, paper_rows, reference):
     reference : dict
         ``omega``, ``wavelength`` of the reference case.
     """
+    import matplotlib.pyplot as plt
     fig, axes = plt.subplots(2, 3, figsize=(15, 8.5), dpi=100)
     (speed, texture, noise), (collapse, cell, paper) = axes
     _lines(speed, summary, "speed", "omega")

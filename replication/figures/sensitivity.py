@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import math
 
-import matplotlib.pyplot as plt
 import numpy as np
 
 from replication.figures.style import save
@@ -24,6 +23,7 @@ def draw(path, study, *, ylabel, title, n_cols=4):
     ylabel, title : str
     n_cols : int
     """
+    import matplotlib.pyplot as plt
     axes = study["axes"]
     n_cols = min(n_cols, len(axes))
     n_rows = max(1, math.ceil(len(axes) / n_cols))

@@ -2,7 +2,6 @@
 
 from pathlib import Path
 
-import matplotlib.pyplot as plt
 
 SAVE_OPTIONS = {"dpi": 110, "metadata": {"Software": None}}
 
@@ -15,6 +14,7 @@ def save(fig, path):
     fig : matplotlib.figure.Figure
     path : str or Path
     """
+    import matplotlib.pyplot as plt
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, **SAVE_OPTIONS)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import matplotlib.pyplot as plt
 
 from replication.figures import style
 
@@ -21,6 +20,7 @@ def plot_series(lines, *, numeric, metric, x_label, path):
     path : str or Path
         The PNG to write.
     """
+    import matplotlib.pyplot as plt
     categories = sorted({xv for line in lines for xv, _ in line["points"]}) if not numeric \
         else None
     place = (lambda xv: xv) if numeric else categories.index

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 
-import matplotlib.pyplot as plt
 import numpy as np
 
 from replication.figures.cloth_common import save
@@ -35,6 +34,7 @@ def plot(axes, labels, *, goal, rtol, out_name, figure_dir="figures", n_cols=4):
     figure_dir : str or Path
     n_cols : int
     """
+    import matplotlib.pyplot as plt
     n_rows = max(1, math.ceil(len(axes) / n_cols))
     fig, grid = plt.subplots(2 * n_rows, n_cols, figsize=(4.2 * n_cols, 4.6 * n_rows),
                              squeeze=False, layout="constrained",

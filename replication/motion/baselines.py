@@ -18,7 +18,6 @@ from scipy import ndimage
 from replication.motion.derivatives import sequence_derivatives
 from replication.motion.irc import tukey_weights
 from replication.optim.objective import Objective
-from replication.optim.pymoo_adapters import run_pymoo
 
 
 def _centre_from_affine(a, b, tx, ty):
@@ -290,6 +289,10 @@ def de_rotation(frames, *, seed, sigma=1.5, relative_threshold=0.15, tau=2.0,
     dict
         ``xi, eta, omega, cost, evaluations``.
     """
+    # imported here: pymoo's CMA-ES, which the adapters import, imports matplotlib's pyplot
+    # and scipy.stats (about 2 s), which a motion run without this baseline does not need
+    from replication.optim.pymoo_adapters import run_pymoo
+
     pixels = sequence_derivatives(frames, sigma=sigma, relative_threshold=relative_threshold)
     stride = max(1, len(pixels) // max_pixels)
     subset = type(pixels)(*(getattr(pixels, f)[::stride]

@@ -18,7 +18,6 @@ from scipy import ndimage
 from replication.motion.baselines import flow_field, rigid_fit
 from replication.motion.segment import disc_ea
 from replication.optim.objective import Objective
-from replication.optim.pymoo_adapters import BatchedProblem
 
 NICHEGA_DEFAULTS = {"norm_niche_size": 0.05}
 FLOW_DEFAULTS = {"motion_min": 0.25, "tolerance": 0.3, "samples": 300, "min_inliers": 300,
@@ -46,6 +45,8 @@ def nichega_discs(data, ea_settings, nichega_settings, rng):
     """
     from pymoo.algorithms.soo.nonconvex.ga_niching import NicheGA
     from pymoo.optimize import minimize
+
+    from replication.optim.pymoo_adapters import BatchedProblem
 
     settings = {**disc_ea.DEFAULTS, **ea_settings}
     options = {**NICHEGA_DEFAULTS, **(nichega_settings or {})}

@@ -138,19 +138,55 @@ def reading_of(line):
 def compose_reading(experiment, pairs):
     """The resolved config of ``experiment`` with the overrides ``{key: text}``, as
     ``replicate`` composes it (plain dict)."""
-    from hydra import compose, initialize_config_dir
-    from hydra.core.global_hydra import GlobalHydra
+    from omegaconf import OmegaConf
+
+    cfg = _composed(experiment, [f"{k}={v}" for k, v in sorted(pairs.items())])
+    return OmegaConf.to_container(cfg, resolve=True)
+
+
+def reading_composer(experiment):
+    """``compose(pairs)``: what :func:`compose_reading` gives for ``experiment`` and the
+    overrides ``pairs``, without a full Hydra composition per reading (a fifth of a second
+    each, most of this study's time): the experiment's config is composed once, on first
+    use, and each reading's overrides are applied to a copy of it by Hydra's own override
+    code, as the composition applies them once its defaults list is built. A reading that
+    overrides a config group (a folder of configs/, which changes the defaults list) is
+    composed in full. tests/cloth/test_table1_sensitivity.py compares the two."""
+    import copy
+
+    from hydra._internal.config_loader_impl import ConfigLoaderImpl
+    from hydra.core.override_parser.overrides_parser import OverridesParser
     from omegaconf import OmegaConf
 
     from replication.cli import CONFIG_DIR
 
-    args = [f"experiment={experiment}", *[f"{k}={v}" for k, v in sorted(pairs.items())]]
+    parser, base = OverridesParser.create(), []
+
+    def compose(pairs):
+        overrides = parser.parse_overrides([f"{k}={v}" for k, v in sorted(pairs.items())])
+        if any(o.package is not None or (Path(CONFIG_DIR) / o.key_or_group).is_dir()
+               for o in overrides):
+            return compose_reading(experiment, pairs)
+        if not base:
+            base.append(_composed(experiment, []))
+        config = copy.deepcopy(base[0])
+        ConfigLoaderImpl._apply_overrides_to_config(overrides, config)
+        return OmegaConf.to_container(config, resolve=True)
+    return compose
+
+
+def _composed(experiment, args):
+    """Hydra's composed config (``DictConfig``) of ``experiment`` with overrides ``args``."""
+    from hydra import compose, initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+
+    from replication.cli import CONFIG_DIR
+
+    args = [f"experiment={experiment}", *args]
     if GlobalHydra.instance().is_initialized():
-        cfg = compose(config_name="config", overrides=args)
-    else:
-        with initialize_config_dir(config_dir=CONFIG_DIR, version_base="1.3"):
-            cfg = compose(config_name="config", overrides=args)
-    return OmegaConf.to_container(cfg, resolve=True)
+        return compose(config_name="config", overrides=args)
+    with initialize_config_dir(config_dir=CONFIG_DIR, version_base="1.3"):
+        return compose(config_name="config", overrides=args)
 
 
 def _config_hashes(config):
@@ -173,6 +209,7 @@ def staleness(readings, experiment):
     accepted = accepted_code_hashes(READING_RUNNER)
     counts = {"code": 0, "config": 0, "inputs": 0, "no_provenance": 0}
     stale, inputs_now = [], {}
+    compose = reading_composer(experiment)
     for reading in readings:
         reasons = []
         if reading["code_sha256"] is None:
@@ -181,7 +218,7 @@ def staleness(readings, experiment):
             if reading["code_sha256"] not in accepted:
                 reasons.append("code")
             try:
-                composed = compose_reading(experiment, reading["overrides"])
+                composed = compose(reading["overrides"])
                 if reading["config_sha256"] not in _config_hashes(composed):
                     reasons.append("config")
             except Exception:  # an override the current config no longer has

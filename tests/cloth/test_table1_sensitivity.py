@@ -23,7 +23,11 @@ from replication.cloth.numerics_variants import (
     variant_rollout,
 )
 from replication.errors import InputError
-from replication.experiments.table1_sensitivity import compose_reading, sensitivity_study
+from replication.experiments.table1_sensitivity import (
+    compose_reading,
+    reading_composer,
+    sensitivity_study,
+)
 from replication.provenance import PROJECT_ROOT
 from replication.report.table1_sensitivity import sensitivity_section
 from replication.sweep import main as gather_main
@@ -82,6 +86,21 @@ def test_variants_change_the_model_and_refuse_bad_settings(reference):
         Numerics.from_config({"constraint": "red_black"})
     with pytest.raises(InputError, match="unknown"):
         Numerics.from_config({"passes": 2})
+
+
+@pytest.mark.parametrize("pairs", [
+    {}, {"cost.frame": "30"}, {"bounds_preset": "wide", "ea.mutation_scale": "0.2"},
+    {"numerics.dt": "null", "numerics.damping": "1e-05", "numerics.dtype": "float32"},
+    {"+extra": "1", "restarts": "3"},   # a new key
+    {"paper_ea@ea": "paper"},           # a config group: composed in full
+])
+def test_the_readings_composer_gives_the_full_composition(pairs):
+    """The staleness check's quick composer (a copy of the composed experiment with each
+    reading's overrides applied) gives exactly what a full Hydra composition gives."""
+    composer = reading_composer("table1_reading")
+    assert repr(composer(pairs)) == repr(compose_reading("table1_reading", pairs))
+    with pytest.raises(Exception, match="Could not override 'nope.x'"):
+        composer({"nope.x": "1"})
 
 
 def _run(sweep, pairs):

@@ -233,8 +233,13 @@ def test_sweep_refusals_come_before_any_job(args, message):
 
     with pytest.raises(InputError, match=re.escape(message)):
         compose_first_job(args)
-    # sweeps Hydra runs (a reviewer's list): an out per job or none, one job, a swept key
-    # in a sweep over experiments, a list index
+
+
+def test_sweeps_hydra_runs_pass_the_sweep_checks():
+    """The other side of the refusals above: sweeps Hydra runs (a reviewer's list): an out
+    per job or none, one job, a swept key in a sweep over experiments, a list index."""
+    from replication.cli import compose_first_job
+
     for legit in (["experiment=cloth_identify", "seed=0,1", "out=o/a,o/b"],
                   ["experiment=cloth_identify", "seed=0,1", "out=null"],
                   ["experiment=cloth_identify", "seed=0,1", "out=o/${seed}"],

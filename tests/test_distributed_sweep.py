@@ -58,15 +58,15 @@ def gathered(folder):
                                for row in rows]
 
 
-def swept_and_plain(tmp_path, study, seeds, launcher):
+def swept_and_plain(tmp_path, study, seeds, launcher, plain_only=()):
     """Sweep ``study`` over ``seeds`` (the first value is 3) through ``launcher``, and run it
-    plainly with seed 3; returns the two ``result.json`` paths of seed 3 and the sweep's
-    stderr."""
+    plainly with seed 3 (and the overrides ``plain_only``); returns the two ``result.json``
+    paths of seed 3 and the sweep's stderr."""
     folder = tmp_path / "sweep"
     done = run_cli("-m", *study, *seeds, *launcher, f"hydra.sweep.dir={folder}")
     assert done.returncode == 0, done.stderr[-3000:]
     assert "Traceback" not in done.stderr
-    plain = run_cli(*study, "seed=3", f"out={tmp_path / 'plain'}")
+    plain = run_cli(*study, "seed=3", *plain_only, f"out={tmp_path / 'plain'}")
     assert plain.returncode == 0, plain.stderr[-3000:]
     (swept,) = [p for p in folder.rglob("result.json") if "seed=3" in p.parent.name
                 or p.parent == folder]
@@ -170,10 +170,13 @@ def test_dask_job_of_an_experiment_with_worker_processes_runs_its_tasks_itself(t
     """A Dask worker is a daemonic process, which may not start processes: a job of an
     experiment with worker processes (discrepancy_outside, study.workers=2) ended in
     multiprocessing's "daemonic processes are not allowed to have children" traceback. Its
-    datasets now run in the worker itself, with the answers of a plain run's process pool."""
+    datasets now run in the worker itself, with the answers of a plain run's (each dataset
+    is seeded alone, so a plain run in one process gives the answers of its pool: the
+    comparison needs no pool of its own)."""
     study = ["experiment=discrepancy_outside", "study.n_datasets=2",
              "study.frames_range=[100,120]", "figure=null", "manifest=null"]
-    swept, plain, err = swept_and_plain(tmp_path, study, ["seed=3"], ["hydra/launcher=dask"])
+    swept, plain, err = swept_and_plain(tmp_path, study, ["seed=3"], ["hydra/launcher=dask"],
+                                        plain_only=["study.workers=1"])
     assert "is a daemon" in err   # the tasks ran in the worker
 
     def datasets(path):
@@ -314,12 +317,14 @@ def test_joblib_job_of_an_experiment_with_worker_processes_starts_them(tmp_path)
     job ended in "cannot find context for 'loky'" tracebacks. They now start, and give the
     answers of a plain run. One job is enough: with n_jobs=2 joblib runs even a single job
     in a loky worker (only n_jobs=1 runs it in the launching process). One optimiser on the
-    two references is two runs, enough for the experiment's pool of two processes."""
+    two references is two runs, enough for the experiment's pool of two processes. Each run
+    is seeded alone, so the plain run, in one process, gives the answers the pool must."""
     study = ["experiment=cloth_baselines", "n_seeds=1", "budgets=[30]",
              "optimisers=[{name: GA, kind: pymoo, algorithm: ga, options: {pop_size: 10}}]",
              f"figure_dir={tmp_path / 'figures'}"]
     swept, plain, _ = swept_and_plain(tmp_path, study, ["seed=3"],
-                                   ["hydra/launcher=joblib", "hydra.launcher.n_jobs=2"])
+                                      ["hydra/launcher=joblib", "hydra.launcher.n_jobs=2"],
+                                      plain_only=["workers=1"])
 
     def answers(path):
         runs = json.loads(path.read_text())["runs"]

@@ -40,8 +40,14 @@ VARIES = {"wall_seconds"}
 
 
 def run_sweep(folder, *launcher):
-    """Run the sweep into ``folder`` with the given launcher overrides; returns its stderr."""
-    done = run_cli("-m", *SWEEP, *launcher, f"hydra.sweep.dir={folder}")
+    """Run the sweep into ``folder`` with the given launcher overrides; returns its stderr.
+    A sweep that does not end fails the test with its stderr (what the workers logged)."""
+    try:
+        done = run_cli("-m", *SWEEP, *launcher, f"hydra.sweep.dir={folder}")
+    except subprocess.TimeoutExpired as hung:
+        stderr = hung.stderr.decode(errors="replace") if hung.stderr else ""
+        pytest.fail(f"the sweep did not end within {hung.timeout} s; its stderr:\n"
+                    f"{stderr[-6000:]}")
     assert done.returncode == 0, done.stderr[-3000:]
     return done.stderr
 
@@ -246,6 +252,28 @@ def test_dask_sweep_with_a_failing_job_exits_2_and_keeps_the_other_jobs(tmp_path
     assert runs == ["budget=50,data.path=synthetic_data%2Fcloth%2Freference_tau0.5.npz,"
                     "method=paper_ea"]
     assert not (folder / "budget=50,data.path=README.md,method=paper_ea").exists()
+
+
+def test_a_job_whose_result_cannot_be_sent_back_comes_back_failed_with_its_story():
+    """A result Dask cannot pickle never reached the client (the worker logged "Failed to
+    serialize" and the sweep waited for ever, twice in CI): the worker now sends the job
+    back as failed with what could not be sent."""
+    import threading
+
+    from hydra.core.utils import JobReturn, JobStatus
+
+    from hydra_plugins.replication_dask_launcher.dask_launcher import sendable
+
+    fine = JobReturn(overrides=["seed=1"], status=JobStatus.COMPLETED, _return_value=None)
+    assert sendable(fine, "tail", 3) == (fine, "tail")
+    stuck = JobReturn(overrides=["seed=2"], status=JobStatus.FAILED,
+                      _return_value=ValueError("bad", threading.Lock()))
+    ret, tail = sendable(stuck, "tail", 4)
+    assert tail == "tail" and ret.status == JobStatus.FAILED and ret.overrides == ["seed=2"]
+    assert isinstance(ret._return_value, RuntimeError)
+    message = str(ret._return_value)
+    assert message.startswith("job 4: its result cannot be sent back from the Dask worker")
+    assert "ValueError: ('bad', <unlocked _thread.lock" in message
 
 
 def test_finished_yields_jobs_as_they_end_and_stops_when_none_comes_back():

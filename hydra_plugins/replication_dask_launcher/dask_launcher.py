@@ -177,7 +177,39 @@ def run_one_job(state: SweepState, overrides: Sequence[str],
                     os.environ.pop(name, None)
                 else:
                     os.environ[name] = value
-        return ret, stderr.tail
+        return sendable(ret, stderr.tail, job_num)
+
+
+def sendable(ret: JobReturn, tail: str, job_num: int) -> Tuple[JobReturn, str]:
+    """``(ret, tail)`` when it can be pickled, as Dask must to send it back; else the job as
+    failed with a ``RuntimeError`` that says what could not be sent and holds the job's own
+    value as text (a traceback for an exception). A result Dask cannot serialise is logged
+    in the worker ("Failed to serialize") but never reaches the client, whose sweep then
+    waited for it for ever (seen twice in CI)."""
+    import pickle
+    import traceback
+
+    import cloudpickle
+
+    result = (ret, tail)
+    try:
+        pickle.dumps(result)
+        return result
+    except Exception:
+        pass
+    try:
+        cloudpickle.dumps(result)
+        return result
+    except Exception as error:
+        value = ret._return_value
+        text = ("".join(traceback.format_exception(value)) if isinstance(value, BaseException)
+                else repr(value))
+        failed = JobReturn(overrides=list(ret.overrides or []), status=JobStatus.FAILED,
+                           _return_value=RuntimeError(
+                               f"job {job_num}: its result cannot be sent back from the Dask "
+                               f"worker ({type(error).__name__}: {error}); the job's value "
+                               f"was: {text}"))
+        return failed, tail
 
 
 def close_quietly(client, cluster, reach_workers: bool = True) -> None:

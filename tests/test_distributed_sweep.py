@@ -276,6 +276,23 @@ def test_a_job_whose_result_cannot_be_sent_back_comes_back_failed_with_its_story
     assert "ValueError: ('bad', <unlocked _thread.lock" in message
 
 
+def test_a_job_that_raises_on_the_worker_comes_back_failed_with_its_traceback(tmp_path):
+    """Whatever a job raises outside the experiment (here: a worker that cannot see the
+    folder the sweep was submitted from) comes back as a failed job holding the traceback
+    as text, which always pickles."""
+    from hydra.core.utils import JobStatus
+
+    from hydra_plugins.replication_dask_launcher.dask_launcher import SweepState, run_one_job
+
+    state = SweepState(hydra_context=None, task_function=None, config=None,
+                       singleton_state={}, cwd=str(tmp_path / "elsewhere"))
+    ret, tail = run_one_job(state, ["seed=1"], 7)
+    assert ret.status == JobStatus.FAILED and ret.overrides == ["seed=1"] and tail == ""
+    message = str(ret._return_value)
+    assert message.startswith("job 7 failed on the Dask worker ") and "Traceback" in message
+    assert "which this worker cannot see" in message
+
+
 def test_finished_yields_jobs_as_they_end_and_stops_when_none_comes_back():
     """The launcher's wait (``stall_seconds``): each future as it finishes, failed ones
     too, then ``JobsStalled`` with the futures left when none finished in time (a job that

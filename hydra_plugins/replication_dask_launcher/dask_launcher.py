@@ -137,6 +137,23 @@ def _refuse(message):
 
 def run_one_job(state: SweepState, overrides: Sequence[str],
                 job_num: int) -> Tuple[JobReturn, str]:
+    """:func:`run_job_here`, with anything it raises sent back as a failed job whose value is
+    a ``RuntimeError`` holding the traceback as text (which always pickles: an exception
+    Dask cannot serialise never reaches the client)."""
+    import traceback
+
+    try:
+        return run_job_here(state, overrides, job_num)
+    except Exception as error:
+        text = "".join(traceback.format_exception(error))
+        return JobReturn(overrides=list(overrides), status=JobStatus.FAILED,
+                         _return_value=RuntimeError(
+                             f"job {job_num} failed on the Dask worker "
+                             f"{os.uname().nodename}: {text}")), ""
+
+
+def run_job_here(state: SweepState, overrides: Sequence[str],
+                 job_num: int) -> Tuple[JobReturn, str]:
     """Run one job of the sweep in this (worker) process.
 
     Returns its ``JobReturn`` and the last lines the job wrote on stderr (the worker's

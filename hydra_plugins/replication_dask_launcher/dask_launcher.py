@@ -198,24 +198,19 @@ def run_job_here(state: SweepState, overrides: Sequence[str],
 
 
 def sendable(ret: JobReturn, tail: str, job_num: int) -> Tuple[JobReturn, str]:
-    """``(ret, tail)`` when it can be pickled, as Dask must to send it back; else the job as
-    failed with a ``RuntimeError`` that says what could not be sent and holds the job's own
-    value as text (a traceback for an exception). A result Dask cannot serialise is logged
-    in the worker ("Failed to serialize") but never reaches the client, whose sweep then
-    waited for it for ever (seen twice in CI)."""
-    import pickle
+    """``(ret, tail)`` when Dask's pickling (``distributed.protocol.pickle.dumps``: pickle,
+    else cloudpickle) takes it, as Dask must to send it back; else the job as failed with a
+    ``RuntimeError`` that says what could not be sent and holds the job's own value as text
+    (a traceback for an exception). A result Dask cannot serialise is logged in the worker
+    ("Failed to serialize") but never reaches the client, whose sweep then waited for it
+    for ever (seen once in CI and once in a local run of the tests)."""
     import traceback
 
-    import cloudpickle
+    from distributed.protocol.pickle import dumps
 
     result = (ret, tail)
     try:
-        pickle.dumps(result)
-        return result
-    except Exception:
-        pass
-    try:
-        cloudpickle.dumps(result)
+        dumps(result)
         return result
     except Exception as error:
         value = ret._return_value

@@ -88,7 +88,7 @@ def test_timing_rule():
 # experiments whose small settings are another's: the same runner on the same settings
 # makes the same runs (checked below, so that a change to either set runs it again)
 SAME_RUNS_AS = {"cloth_baselines_budgets": "cloth_baselines"}
-NAMES_ONLY = ("name", "figures", "figure", "out")   # keys that name, not make, the runs
+NAMES_ONLY = ("name", "figures", "figure")   # keys that name, not make, the runs
 
 
 def _runs_of(name, folder):

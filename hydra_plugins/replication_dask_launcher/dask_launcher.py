@@ -202,8 +202,8 @@ def sendable(ret: JobReturn, tail: str, job_num: int) -> Tuple[JobReturn, str]:
     else cloudpickle) takes it, as Dask must to send it back; else the job as failed with a
     ``RuntimeError`` that says what could not be sent and holds the job's own value as text
     (a traceback for an exception). A result Dask cannot serialise is logged in the worker
-    ("Failed to serialize") but never reaches the client, whose sweep then waited for it
-    for ever (seen once in CI and once in a local run of the tests)."""
+    ("Failed to serialize") but never reaches the client, whose sweep then waits for it for
+    ever (CI once hung so after the workers had logged that line)."""
     import traceback
 
     from distributed.protocol.pickle import dumps

@@ -199,17 +199,18 @@ def _config_hashes(config):
     return hashes
 
 
-def staleness(readings, experiment):
+def staleness(readings, experiment, compose=None):
     """Which gathered runs the current code, config and input files would not make.
 
     Returns ``{"n_runs", "n_stale", "code", "config", "inputs", "no_provenance"}`` (counts;
-    ``runs``: the stale run folders with their reasons).
+    ``runs``: the stale run folders with their reasons). ``compose``: a
+    :func:`reading_composer` of ``experiment`` to reuse (one is made if not given).
     """
     code_now = code_hash(READING_RUNNER)
     accepted = accepted_code_hashes(READING_RUNNER)
     counts = {"code": 0, "config": 0, "inputs": 0, "no_provenance": 0}
     stale, inputs_now = [], {}
-    compose = reading_composer(experiment)
+    compose = compose or reading_composer(experiment)
     for reading in readings:
         reasons = []
         if reading["code_sha256"] is None:
@@ -345,7 +346,8 @@ def sensitivity_study(config, out):
     paper_rows = [r for r in rows if not r["beyond"]]
     beyond_rows = [r for r in rows if r["beyond"]]
     table_label = table1_2["table_reference"]
-    default_sha = _config_hashes(compose_reading(config["reading_experiment"], {}))
+    compose = reading_composer(config["reading_experiment"])   # composes the base once
+    default_sha = _config_hashes(compose({}))
     baseline = next((r for r in readings if r["config_sha256"] in default_sha), None)
     same = None
     if baseline is not None:
@@ -375,7 +377,7 @@ def sensitivity_study(config, out):
         "baseline_run": None if baseline is None else baseline["run"],
         "baseline_matches_table1_2": same,
         "sweep_seconds": float(sum(r["wall_seconds"] or 0.0 for r in readings)),
-        "staleness": staleness(readings, config["reading_experiment"]),
+        "staleness": staleness(readings, config["reading_experiment"], compose),
         "figures": figures,
     }
     stale = result["staleness"]

@@ -202,6 +202,25 @@ def stale_experiments(entries, results, provenance, keys, cache, *, force=False,
     return stale
 
 
+def stale_now(results="results", cache=None):
+    """The experiments of ``replicate-all`` that a run without ``--force`` would recompute
+    now, in report order (gathered ones, which always run, left out).
+
+    Parameters
+    ----------
+    results : str or Path
+        Folder of ``NAME/result.json``.
+    cache : dict, optional
+        The contents of ``.regenerate-cache.json``; ``None``: as on a fresh clone, which
+        has none (committed results count by their provenance alone).
+    """
+    entries = experiment_entries()
+    configs = resolved_configs([name for _, name, _ in entries])
+    provenance, keys = experiment_keys(entries, configs)
+    stale = stale_experiments(entries, Path(results), provenance, keys, cache or {})
+    return [name for _, name, block in entries if name in stale and not block.get("gather")]
+
+
 class _Job:
     """One ``replicate`` subprocess whose output is echoed with a prefix and logged."""
 
@@ -583,6 +602,15 @@ def _main(argv=None):
         elif parts:   # every experiment of these parts recomputed
             name = "+".join(part for part in PARTS if part in parts)
             (results / f"regenerate-part-{name}.json").write_text(text)
+    if only and not failures:
+        # a run of some experiments rewrites files that others read (their inputs'
+        # hashes hold every file of a result folder, timings included): say which are
+        # stale now, so that a partial run does not leave them so unnoticed
+        outside = [name for name in stale_now(results, cache) if name not in only]
+        if outside:
+            print(f"note: {len(outside)} experiment(s) outside this run read what it "
+                  f"rewrote and are stale now: {', '.join(outside)}; `replicate-all` "
+                  "brings them up to date", flush=True)
     for name in gathered:  # gatherers read the records above, so they run last, always
         command = replicate_command(results)(name)
         if subprocess.run(command, cwd=PROJECT_ROOT, check=False).returncode != 0:

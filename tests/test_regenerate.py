@@ -412,3 +412,16 @@ def test_part_selects_the_experiments_of_a_part_of_the_report(tmp_path, capsys):
         err = capsys.readouterr().err
         assert err.startswith(f"error: {message}") and err.count("\n") == 1, err
     assert not (tmp_path / "other").exists()
+
+
+def test_the_committed_results_are_current():
+    """README: a fresh clone recomputes nothing that its committed results hold. Every
+    result of `replicate-all` carries the provenance (config, code and input hashes) that
+    this config, code and data give now; a change to any of them, or a partial run
+    (`--only`, `--part`) that rewrote files another experiment reads, shows here until
+    `replicate-all` has brought the results up to date and they are committed."""
+    from replication.regenerate import stale_now
+
+    stale = stale_now(provenance.PROJECT_ROOT / "results")
+    assert stale == [], (f"{len(stale)} committed result(s) no longer current: "
+                         f"{', '.join(stale)} (`replicate-all --dry-run` says why)")

@@ -605,12 +605,13 @@ def _main(argv=None):
     if only and not failures:
         # a run of some experiments rewrites files that others read (their inputs'
         # hashes hold every file of a result folder, timings included): say which are
-        # stale now, so that a partial run does not leave them so unnoticed
+        # not current now (for that reason or another), so that none is left unnoticed
         outside = [name for name in stale_now(results, cache) if name not in only]
         if outside:
-            print(f"note: {len(outside)} experiment(s) outside this run read what it "
-                  f"rewrote and are stale now: {', '.join(outside)}; `replicate-all` "
-                  "brings them up to date", flush=True)
+            print(f"note: {len(outside)} experiment(s) outside this run are not current "
+                  f"(what they read may have been rewritten by it; `replicate-all "
+                  f"--dry-run` says why): {', '.join(outside)}; `replicate-all` brings "
+                  "them up to date", flush=True)
     for name in gathered:  # gatherers read the records above, so they run last, always
         command = replicate_command(results)(name)
         if subprocess.run(command, cwd=PROJECT_ROOT, check=False).returncode != 0:

@@ -50,3 +50,18 @@ def test_the_fig11_paragraph_quotes_the_configured_costs_and_needs_two_sets():
     assert "(cost 0.25)" in text and "(cost 0.75)" in text
     result["reconstructions"] = result["reconstructions"][:1]
     assert "The paper puts the two" not in reconstruction_section(result).markdown
+
+
+def test_rates_over_datasets_carry_their_wilson_interval():
+    """20 exact answers of 25: 80%, and the 95% Wilson interval from its closed form
+    (p + z^2/2n +- z sqrt(p(1-p)/n + z^2/4n^2)) / (1 + z^2/n), z = 1.95996."""
+    import math
+
+    from replication.report.discrepancy import _pct_of
+
+    n, p, z = 25, 0.8, 1.959964
+    centre, half = p + z * z / (2 * n), z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
+    low, high = ((centre - half) / (1 + z * z / n), (centre + half) / (1 + z * z / n))
+    assert _pct_of(0.8, 25) == (f"80% of 25 (95% interval {100 * low:.0f}-"
+                                f"{100 * high:.0f}%)") == "80% of 25 (95% interval 61-91%)"
+    assert _pct_of(None, 25) == "n/a" and _pct_of(0.5, 0) == "50%"

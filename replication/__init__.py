@@ -6,4 +6,9 @@ paper's EAs and the baselines share, ``replication.figures`` draws, ``replicatio
 writes REPORT.md from results.
 """
 
+from replication.blas import pin_kernels
+
+# before anything imports numpy: the same BLAS kernels on every x86-64 CPU (replication/blas.py)
+pin_kernels()
+
 __version__ = "0.1.0"

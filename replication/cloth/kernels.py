@@ -251,10 +251,14 @@ def one_step_errors(xs, vs, frames, rest, k, tau, extra, dtc, sa, sb, st, free, 
 def one_step_errors_tau(xs, vs, frames, rest, k, tau, extra, dtc, sa, sb, st, free, mass,
                         gravity, damping, dt):
     """:func:`one_step_errors` of one (rest, k) under many tau: ``e`` (B, F), equal bit for
-    bit to ``one_step_errors`` with ``rest`` and ``k`` repeated over the batch. The forces,
-    the Euler step and the springs of x' (no tau in them) are computed once per frame; per
-    tau, only the comparison with the limits and the proposals of the springs over them.
-    Every tau under which no spring is over its limit has the same error, computed once.
+    bit to ``one_step_errors`` with ``rest`` and ``k`` repeated over the batch.
+
+    Per frame, the forces, the Euler step, the springs of x' and every particle's error
+    terms without the constraint (no tau in them) are computed once. Per tau, only the
+    springs that can be over a limit of the batch are compared with the limits (a spring
+    no longer than its type's smallest limit is over none), and only the particles their
+    proposals move are stepped again; the error is summed over every particle in the
+    order of :func:`_error`, so that the numbers are the same.
 
     Parameters
     ----------
@@ -271,50 +275,97 @@ def one_step_errors_tau(xs, vs, frames, rest, k, tau, extra, dtc, sa, sb, st, fr
     n_frames = frames.shape[0]
     n_particles = xs.shape[1]
     n_springs = sa.shape[0]
+    n_types = rest.size
     errors = np.empty((n_batch, n_frames))
     shared_frame = extra.shape[1] == 1
+    # the smallest limit of each type over the batch: (1 + tau) l grows with tau
+    lowest = np.empty(n_types)
+    for kind in range(n_types):
+        lowest[kind] = np.inf
+        for i in range(n_batch):
+            limit = (1.0 + tau[i, kind]) * rest[kind]
+            if limit < lowest[kind]:   # (a NaN limit is over no spring, and not lowest)
+                lowest[kind] = limit
     for job in prange(n_frames):
         f = np.int64(job)
         t = frames[f]
+        x_now = xs[t]
+        x_next = xs[t + 1]
+        v_next = vs[t + 1]
         force = np.empty((n_particles, 3))
-        corr = np.empty((n_particles, 3))
-        count = np.empty(n_particles)
+        corr = np.zeros((n_particles, 3))
+        count = np.zeros(n_particles)
         x_pred = np.empty((n_particles, 3))
-        x_hat = np.empty((n_particles, 3))
-        v_hat = np.empty((n_particles, 3))
+        terms = np.empty((n_particles, 3))
         d = np.empty((n_springs, 3))
         length = np.empty(n_springs)
-        limits = np.empty(rest.size)
+        candidates = np.empty(n_springs, dtype=np.int64)
+        touched = np.empty(n_particles, dtype=np.int64)
+        limits = np.empty(n_types)
         ef = np.int64(0) if shared_frame else f
-        _predict_into(xs[t], vs[t], rest, k, extra[0, ef], sa, sb, st, free, mass, gravity,
+        _predict_into(x_now, vs[t], rest, k, extra[0, ef], sa, sb, st, free, mass, gravity,
                       damping, dt, force, x_pred)
-        # the springs of x' (the Jacobi pass reads x' alone), as _constrain_into computes them
+        # the springs of x' (the Jacobi pass reads x' alone), as _constrain_into computes
+        # them, and those that may be over a limit of the batch
+        n_candidates = 0
         for s in range(n_springs):
             d[s, 0] = x_pred[sb[s], 0] - x_pred[sa[s], 0]
             d[s, 1] = x_pred[sb[s], 1] - x_pred[sa[s], 1]
             d[s, 2] = x_pred[sb[s], 2] - x_pred[sa[s], 2]
             length[s] = np.sqrt(d[s, 0] * d[s, 0] + d[s, 1] * d[s, 1] + d[s, 2] * d[s, 2])
-        unconstrained, have_unconstrained = 0.0, False   # error when no spring is too long
+            if length[s] > lowest[st[s]]:
+                candidates[n_candidates] = s
+                n_candidates += 1
+        # each particle's error terms when no proposal moves it (_apply_into, _error)
+        unconstrained = 0.0
+        for p in range(n_particles):
+            for c in range(3):
+                vel = (x_pred[p, c] - x_now[p, c]) / dt if free[p] else 0.0
+                dx = x_pred[p, c] - x_next[p, c]
+                dv = vel - v_next[p, c]
+                terms[p, c] = dx * dx + dtc * dtc * dv * dv
+                unconstrained += terms[p, c]
+        if not np.isfinite(unconstrained):
+            unconstrained = np.inf
         for i in range(n_batch):
-            for kind in range(limits.size):
+            for kind in range(n_types):
                 limits[kind] = (1.0 + tau[i, kind]) * rest[kind]
-            corr[:] = 0.0
-            count[:] = 0.0
             hits = 0
-            for s in range(n_springs):
+            for j in range(n_candidates):
+                s = candidates[j]
                 limit = limits[st[s]]
                 if length[s] > limit:
                     propose_correction(sa[s], sb[s], d[s, 0], d[s, 1], d[s, 2], length[s],
                                        limit, free, corr, count)
                     hits += 1
-            if hits == 0 and have_unconstrained:
+            if hits == 0:
                 errors[i, f] = unconstrained
                 continue
-            x_hat[:] = x_pred
-            _apply_into(xs[t], free, dt, corr, count, x_hat, v_hat)
-            errors[i, f] = _error(x_hat, v_hat, xs[t + 1], vs[t + 1], dtc)
-            if hits == 0:
-                unconstrained, have_unconstrained = errors[i, f], True
+            n_touched = 0
+            for p in range(n_particles):
+                if count[p] > 0.0:
+                    touched[n_touched] = p
+                    n_touched += 1
+            # the error over every particle in order: the moved ones stepped again (and
+            # their scratch cleared for the next tau), the others' terms as computed
+            total = 0.0
+            j = 0
+            for p in range(n_particles):
+                if j < n_touched and touched[j] == p:
+                    j += 1
+                    for c in range(3):
+                        position = x_pred[p, c] + corr[p, c] / count[p]
+                        vel = (position - x_now[p, c]) / dt if free[p] else 0.0
+                        dx = position - x_next[p, c]
+                        dv = vel - v_next[p, c]
+                        total += dx * dx + dtc * dtc * dv * dv
+                        corr[p, c] = 0.0
+                    count[p] = 0.0
+                else:
+                    total += terms[p, 0]
+                    total += terms[p, 1]
+                    total += terms[p, 2]
+            errors[i, f] = total if np.isfinite(total) else np.inf
     return errors
 
 

@@ -1,11 +1,13 @@
 """The paper's costs on the reference runs (docs/cloth-model.md, "Costs")."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from replication.cloth.costs import make_cost
 from replication.cloth.io import read_trajectory
-from replication.cloth.model import params_from_vectors, reference_vector
+from replication.cloth.model import ClothParams, params_from_vectors, reference_vector
 
 ROOT = __import__("pathlib").Path(__file__).resolve().parents[2]
 
@@ -73,3 +75,24 @@ def test_tau_costs_equal_the_cost_of_the_repeated_population(reference):
         assert np.array_equal(general, shortcut)
     with pytest.raises(ValueError, match="shared"):
         cost.tau_costs(rest, k, tau, np.zeros((2, 1, P, 3)))
+
+
+def test_tau_costs_equal_the_general_cost_under_per_type_tau(reference):
+    """The shortcut skips the springs no longer than their type's smallest limit in the
+    batch and steps again only the particles that proposals move: with a tau per type
+    (rows in any order, one NaN row that limits nothing) and noisy positions, where
+    proposals land on some particles and not on others, the numbers are still the general
+    cost's, bit for bit."""
+    trajectory, truth = reference
+    rng = np.random.default_rng(11)
+    noisy = dataclasses.replace(trajectory, velocities=None, positions=trajectory.positions
+                                + rng.normal(0.0, 2e-3, trajectory.positions.shape))
+    cost = make_cost(noisy, "full", start=60, window=20)
+    base = params_from_vectors(truth)
+    rest, k = base.rest[0], base.k[0]
+    tau = rng.uniform(0.0, 0.3, (40, 6))
+    tau[7] = np.nan
+    general = cost(ClothParams(np.repeat(rest[None], len(tau), 0),
+                               np.repeat(k[None], len(tau), 0), tau))
+    assert np.array_equal(general, cost.tau_costs(rest, k, tau))
+    assert len(np.unique(general)) > 30   # the taus matter: proposals land on many rows

@@ -5,6 +5,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from replication.cloth import kernels
 from replication.cloth.costs import make_cost
 from replication.cloth.io import read_trajectory
 from replication.cloth.model import ClothParams, params_from_vectors, reference_vector
@@ -96,3 +97,42 @@ def test_tau_costs_equal_the_general_cost_under_per_type_tau(reference):
                                np.repeat(k[None], len(tau), 0), tau))
     assert np.array_equal(general, cost.tau_costs(rest, k, tau))
     assert len(np.unique(general)) > 30   # the taus matter: proposals land on many rows
+
+
+def test_tau_kernel_equals_the_general_kernel_bit_for_bit_on_small_random_scenes():
+    """Small random meshes (pinned particles, springs between any two particles, masses and
+    forces at random), taus of every sign and NaN or infinite, positions and velocities
+    now and then NaN or infinite, and a spring exactly at its limit: the tau kernel's
+    numbers have the bits of the general kernel's."""
+    rng = np.random.default_rng(5)
+    gravity, damping, dt = np.array([0.0, 0.0, -9.81]), 0.1, 0.01
+    for _ in range(300):
+        P, S, B, F, T = rng.integers(2, 7), rng.integers(1, 12), rng.integers(1, 6), 2, 4
+        xs, vs = rng.normal(size=(T, P, 3)), rng.normal(size=(T, P, 3))
+        if rng.random() < 0.2:
+            xs[rng.integers(T), rng.integers(P), rng.integers(3)] = rng.choice(
+                [np.nan, np.inf, -np.inf])
+        if rng.random() < 0.1:
+            vs[rng.integers(T), rng.integers(P), rng.integers(3)] = np.nan
+        sa = rng.integers(0, P, S)
+        sb = (sa + rng.integers(1, P, S)) % P
+        st = rng.integers(0, 6, S)
+        free, mass = rng.random(P) < 0.7, rng.uniform(0.5, 2.0, P)
+        rest, k = rng.uniform(0.2, 2.0, 6), rng.uniform(0.0, 5.0, 6)
+        tau = np.where(rng.random((B, 6)) < 0.5, rng.normal(0.0, 0.5, (B, 6)),
+                       rng.choice([0.0, -0.0, 0.1, np.nan, np.inf, -np.inf], (B, 6)))
+        frames = rng.integers(0, T - 1, F)
+        extra = rng.normal(0.0, 0.1, (1, rng.choice([1, F]), P, 3))
+        dtc = float(rng.choice([0.0, 0.01, 1.0]))
+        scene = (sa, sb, st, free, mass, gravity, damping, dt)
+        if rng.random() < 0.3:   # spring 0 exactly at its limit under tau = 0 (no forces)
+            k[:] = 0.0
+            force, x_pred = np.empty((P, 3)), np.empty((P, 3))
+            kernels._predict_into(xs[frames[0]], vs[frames[0]], rest, k, extra[0, 0], sa, sb,
+                                  st, free, mass, gravity, damping, dt, force, x_pred)
+            rest[st[0]] = np.linalg.norm(x_pred[sb[0]] - x_pred[sa[0]])
+            tau[:, st[0]] = 0.0
+        general = kernels.one_step_errors(xs, vs, frames, np.repeat(rest[None], B, 0),
+                                          np.repeat(k[None], B, 0), tau, extra, dtc, *scene)
+        shortcut = kernels.one_step_errors_tau(xs, vs, frames, rest, k, tau, extra, dtc, *scene)
+        assert np.array_equal(general.view(np.int64), shortcut.view(np.int64))

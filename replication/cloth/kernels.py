@@ -300,7 +300,6 @@ def one_step_errors_tau(xs, vs, frames, rest, k, tau, extra, dtc, sa, sb, st, fr
         d = np.empty((n_springs, 3))
         length = np.empty(n_springs)
         candidates = np.empty(n_springs, dtype=np.int64)
-        touched = np.empty(n_particles, dtype=np.int64)
         limits = np.empty(n_types)
         ef = np.int64(0) if shared_frame else f
         _predict_into(x_now, vs[t], rest, k, extra[0, ef], sa, sb, st, free, mass, gravity,
@@ -341,18 +340,11 @@ def one_step_errors_tau(xs, vs, frames, rest, k, tau, extra, dtc, sa, sb, st, fr
             if hits == 0:
                 errors[i, f] = unconstrained
                 continue
-            n_touched = 0
-            for p in range(n_particles):
-                if count[p] > 0.0:
-                    touched[n_touched] = p
-                    n_touched += 1
             # the error over every particle in order: the moved ones stepped again (and
             # their scratch cleared for the next tau), the others' terms as computed
             total = 0.0
-            j = 0
             for p in range(n_particles):
-                if j < n_touched and touched[j] == p:
-                    j += 1
+                if count[p] > 0.0:
                     for c in range(3):
                         position = x_pred[p, c] + corr[p, c] / count[p]
                         vel = (position - x_now[p, c]) / dt if free[p] else 0.0

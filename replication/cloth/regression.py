@@ -263,6 +263,8 @@ def base_from_theta(theta, model, tau):
 
 SELECTIONS_KEPT = 4   # frame selections whose states state_frames keeps per data
 COLUMNS_BYTES_KEPT = 2 ** 28   # plug-in columns kept per data (most recently used first)
+DESIGNS_KEPT = 2   # design matrices kept per data (most recently used first)
+DESIGNS_BYTES_KEPT = 2 ** 29   # within this many bytes (the newest is always kept)
 
 
 def _kept(data, name, **bounds):
@@ -300,23 +302,53 @@ def state_frames(data, base, frames=None):
     (:func:`_recorded_states`) and shared by every base model's states, and so are the
     plug-in columns computed on them (:meth:`StateFrames.columns`).
     """
-    if frames is not None:
-        frames = np.asarray(frames)
-        if frames.ndim != 1:
-            raise ValueError(f"frames of shape {frames.shape}: expected a 1-D index array "
-                             "or mask")
-        if frames.dtype == bool:
-            frames = np.flatnonzero(frames)
-        frames = frames.astype(np.intp, copy=False)
+    frames = _frame_index(frames)
     x, v, sums = _recorded_states(data, frames)
     columns = _kept(data, "columns", max_bytes=COLUMNS_BYTES_KEPT)
     return StateFrames(x, v, data.ops, data.mass, base.rest, base.k, data.scene.damping,
                        sums=sums, memo=(columns, None if frames is None else frames.tobytes()))
 
 
+def _frame_index(frames):
+    """``frames`` (a 1-D index array or mask, or None for all frames) as an index array."""
+    if frames is None:
+        return None
+    frames = np.asarray(frames)
+    if frames.ndim != 1:
+        raise ValueError(f"frames of shape {frames.shape}: expected a 1-D index array "
+                         "or mask")
+    if frames.dtype == bool:
+        frames = np.flatnonzero(frames)
+    return frames.astype(np.intp, copy=False)
+
+
 def design(data, base, plugins, model, frames=None):
     """Regressors of base and plug-ins on ``frames`` (all when None): (F, P, 3, m), and the
-    column slice of each plug-in."""
+    column slice of each plug-in.
+
+    Without a plug-in that ``needs_base``, the regressors depend on the recorded frames
+    alone (the base columns are spring sums of the recorded positions): they are made once
+    per plug-ins, model and frames and shared read-only (kept in ``data.cache``, the
+    :data:`DESIGNS_KEPT` most recently used within :data:`DESIGNS_BYTES_KEPT`), since every
+    round of every start of a fit asks for the same ones."""
+    plugins = tuple(plugins)
+    frames = _frame_index(frames)
+    if any(plugin.needs_base for plugin in plugins):
+        return _design(data, base, plugins, model, frames)
+    key = (model, tuple((plugin.name, plugin.basis) for plugin in plugins),
+           None if frames is None else frames.tobytes())
+    slices = data.cache.setdefault("design_slices", {})
+
+    def make():
+        columns, slices[key] = _design(data, base, plugins, model, frames)
+        return columns
+
+    columns = _kept(data, "designs", max_entries=DESIGNS_KEPT,
+                    max_bytes=DESIGNS_BYTES_KEPT).get(key, make)
+    return columns, dict(slices[key])
+
+
+def _design(data, base, plugins, model, frames):
     q = state_frames(data, base, frames)
     A, B = q.sums
     blocks = [base_columns(A, B, data.mass, model)]
@@ -511,9 +543,13 @@ def tau_data(data, *, window=11):
 
 
 def typical_lengths(data):
-    """Median recorded length of each spring type over about 50 frames, (6,)."""
-    x = data.x[::max(1, data.n_frames // 50)]
-    return type_lengths(x, data.ops.n, statistic="median")
+    """Median recorded length of each spring type over about 50 frames, (6,); computed
+    once per ``data`` (every start and round of a fit asks for them)."""
+    if "typical_lengths" not in data.cache:
+        x = data.x[::max(1, data.n_frames // 50)]
+        data.cache["typical_lengths"] = read_only(type_lengths(x, data.ops.n,
+                                                               statistic="median"))
+    return data.cache["typical_lengths"].copy()
 
 
 def _trimmed_lstsq(A, y, *, rounds=6, factor=10.0):

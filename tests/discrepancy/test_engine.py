@@ -4,7 +4,7 @@ both recover K and tau on noise-free references."""
 import numpy as np
 import pytest
 
-from replication.cloth import geometry, regression
+from replication.cloth import geometry, mesh, regression
 from replication.cloth.identify import identify
 from replication.cloth.identify import structured as identify_structured
 from replication.cloth.io import read_trajectory
@@ -218,3 +218,78 @@ def test_kept_plugin_columns_stay_within_their_byte_bound(monkeypatch):
     kept = data.cache["columns"]
     assert kept.nbytes <= 2 * one and len(kept) == 2
     assert [key[2] for key in kept.keys()] == [np.array([f], np.intp).tobytes() for f in (10, 11)]
+
+
+def _fresh_design(data, base, plugins, model, frames=None):
+    """The regressors built from scratch, without anything kept in ``data.cache``."""
+    return regression._design(regression.prepare(data.trajectory), base, tuple(plugins),
+                              model, regression._frame_index(frames))
+
+
+def test_a_design_without_base_dependent_plugins_is_made_once_and_shared_read_only(
+        monkeypatch):
+    monkeypatch.setattr(regression, "DESIGNS_KEPT", 10)   # every design below stays kept
+    data = regression.prepare(read_trajectory("synthetic_data/cloth/reference_tau0.1.npz"))
+    base = regression.BaseModel(np.full(6, data.h), np.full(6, 4.0), np.full(6, 0.1))
+    stiffer = base._replace(k=np.full(6, 5.0), rest=np.full(6, 1.1 * data.h))
+    plugins = [regression.Plugin(name, effects.LIBRARY[name].basis)
+               for name in ("quadratic_drag", "body_force")]
+    first, slices = regression.design(data, base, plugins, "5")
+    again, slices_again = regression.design(data, stiffer, plugins, "5")   # any base
+    assert again is first and slices_again == slices
+    fresh, fresh_slices = _fresh_design(data, base, plugins, "5")
+    assert np.array_equal(first, fresh) and slices == fresh_slices
+    with pytest.raises(ValueError):
+        first[0, 0, 0, 0] = 1.0
+    slices_again["quadratic_drag"] = slice(0, 1)   # the caller's own copy
+    assert regression.design(data, base, plugins, "5")[1] == fresh_slices
+    # other plug-ins, model or frames: other regressors, each made from scratch
+    mask = np.zeros(data.n_frames, bool)
+    mask[[5, 9]] = True
+    for other in ((plugins[:1], "5", None), (plugins, "18", None), (plugins, "5", [5, 9]),
+                  (plugins, "5", mask)):
+        columns, other_slices = regression.design(data, base, *other)
+        assert columns is not first
+        expected, expected_slices = _fresh_design(data, base, *other)
+        assert np.array_equal(columns, expected) and other_slices == expected_slices
+    assert regression.design(data, base, plugins, "5", mask)[0] is \
+        regression.design(data, base, plugins, "5", [5, 9])[0]   # the same frames
+
+
+def test_a_design_with_a_base_dependent_plugin_follows_the_base():
+    data = regression.prepare(read_trajectory("synthetic_data/cloth/reference_tau0.1.npz"))
+    base = regression.BaseModel(np.full(6, data.h), np.full(6, 4.0), np.full(6, 0.1))
+    stiffer = base._replace(k=np.full(6, 5.0), rest=np.full(6, 1.1 * data.h))
+    plugins = [regression.Plugin("quadratic_drag", effects.LIBRARY["quadratic_drag"].basis),
+               regression.Plugin("anisotropic_stiffness",
+                                 effects.LIBRARY["anisotropic_stiffness"].basis, True)]
+    at_base, _ = regression.design(data, base, plugins, "5", [5, 9])
+    at_stiffer, _ = regression.design(data, stiffer, plugins, "5", [5, 9])
+    assert not np.array_equal(at_base, at_stiffer)
+    assert np.array_equal(at_base, _fresh_design(data, base, plugins, "5", [5, 9])[0])
+    assert np.array_equal(at_stiffer, _fresh_design(data, stiffer, plugins, "5", [5, 9])[0])
+
+
+def test_kept_designs_stay_within_their_bounds(monkeypatch):
+    data = regression.prepare(read_trajectory("synthetic_data/cloth/reference_tau0.1.npz"))
+    base = regression.BaseModel(np.full(6, data.h), np.full(6, 4.0), np.full(6, 0.1))
+    one = regression.design(regression.prepare(data.trajectory), base, (), "5", [5])[0].nbytes
+    monkeypatch.setattr(regression, "DESIGNS_BYTES_KEPT", 2 * one)
+    for frame in range(5, 9):
+        regression.design(data, base, (), "5", [frame])
+    kept = data.cache["designs"]
+    assert len(kept) == 2 and kept.nbytes <= 2 * one
+    monkeypatch.setattr(regression, "DESIGNS_BYTES_KEPT", 10 * one)
+    for frame in range(5, 9):
+        regression.design(data, base, (), "5", [frame])
+    assert len(data.cache["designs"]) == regression.DESIGNS_KEPT
+
+
+def test_typical_lengths_are_measured_once_and_handed_out_as_copies():
+    data = regression.prepare(read_trajectory("synthetic_data/cloth/reference_tau0.1.npz"))
+    first = regression.typical_lengths(data)
+    expected = mesh.type_lengths(data.x[::max(1, data.n_frames // 50)], data.ops.n,
+                                 statistic="median")
+    assert np.array_equal(first, expected)
+    first[:] = 0.0                                   # the caller's own copy
+    assert np.array_equal(regression.typical_lengths(data), expected)

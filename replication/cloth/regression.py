@@ -90,8 +90,9 @@ class Data(NamedTuple):
     mass: np.ndarray      # (P,)
     free: np.ndarray      # (P,) bool
     h: float
-    cache: dict           # quantities of the recorded x computed once (state_frames);
-    #                       a Data with other positions comes from prepare(), not _replace
+    cache: dict           # quantities of the recorded x computed once (state_frames,
+    #                       design, version, ...); a Data with other positions comes from
+    #                       prepare(), not _replace
 
     @property
     def n_frames(self):
@@ -213,6 +214,19 @@ def smoothed(trajectory, window, polyorder=3):
     positions[:, ~free] = trajectory.flat_positions()[:, ~free]
     return dataclasses.replace(trajectory, velocities=None,
                                positions=positions.reshape(trajectory.positions.shape))
+
+
+def version(data, window):
+    """``data`` smoothed over ``window`` frames (:func:`smoothed`) and prepared; ``data``
+    itself for ``window=0``. Made once per ``data`` and window and kept in its cache: the
+    starts and the tau search of every fit of the same data ask for the same versions."""
+    window = int(window)
+    if window == 0:
+        return data
+    versions = data.cache.setdefault("versions", {})
+    if window not in versions:
+        versions[window] = prepare(smoothed(data.trajectory, window))
+    return versions[window]
 
 
 def prepare(trajectory):
@@ -516,13 +530,17 @@ def position_noise(data):
     (gamma_0 - gamma_1) / 10`` while smooth motion adds about as much to both; the median
     over free particles keeps constraint events out.
     """
-    x = data.x[:, data.free]
-    if x.shape[0] < 5:
-        return 0.0
-    second = x[2:] - 2.0 * x[1:-1] + x[:-2]
-    gamma0 = np.mean(second * second, axis=(0, 2))
-    gamma1 = np.mean(second[1:] * second[:-1], axis=(0, 2))
-    return float(np.sqrt(max(np.median(gamma0 - gamma1), 0.0) / 10.0))
+    if "position_noise" not in data.cache:   # once per data
+        x = data.x[:, data.free]
+        if x.shape[0] < 5:
+            sigma = 0.0
+        else:
+            second = x[2:] - 2.0 * x[1:-1] + x[:-2]
+            gamma0 = np.mean(second * second, axis=(0, 2))
+            gamma1 = np.mean(second[1:] * second[:-1], axis=(0, 2))
+            sigma = float(np.sqrt(max(np.median(gamma0 - gamma1), 0.0) / 10.0))
+        data.cache["position_noise"] = sigma
+    return data.cache["position_noise"]
 
 
 NOISY_H = 1e-4   # position noise (units of h) above which the data count as noisy
@@ -539,7 +557,7 @@ def tau_data(data, *, window=11):
     (the one-step cost on noisy states prefers a far too small tau)."""
     if not is_noisy(data) or window > data.n_frames:
         return data
-    return prepare(smoothed(data.trajectory, window))
+    return version(data, window)
 
 
 def typical_lengths(data):
@@ -610,7 +628,7 @@ def _valid(theta, model):
 def _widths(data, plugins):
     base = BaseModel(typical_lengths(data), np.ones(N_TYPES), np.full(N_TYPES, BIG_TAU))
     q = state_frames(data, base, [0])
-    return [plugin.basis(q).shape[-1] for plugin in plugins]
+    return [q.columns(plugin).shape[-1] for plugin in plugins]
 
 
 def _split(theta, plugins, widths, model, tau):
@@ -634,8 +652,8 @@ def trimmed_starts(data, frames, plugins, model, smooth_windows):
     free_plugins = [p for p in plugins if not p.needs_base]
     best = None
     for window in smooth_windows:
-        version = data if window == 0 else prepare(smoothed(data.trajectory, int(window)))
-        theta, scale = trimmed_start(version, frames, free_plugins, model=model)
+        theta, scale = trimmed_start(version(data, window), frames, free_plugins,
+                                     model=model)
         if _valid(theta, model) and (best is None or scale < best[0]):
             best = (scale, theta)
     if best is None:
@@ -674,7 +692,8 @@ def consensus_start(data, frames, plugins, model, *, quantile=CONSENSUS_QUANTILE
     best one is refined by refits on the particle-frames within 3 times that quantile. On
     noise-free data it finds the rest lengths and stiffness to round-off whenever more than
     ``quantile`` of the particle-frames are unconstrained. Plug-in terms start at zero;
-    ``model="18"`` (12 base coefficients) gives None.
+    ``model="18"`` (12 base coefficients) gives None. The coefficients are computed once
+    per ``data`` and arguments (kept in its cache) and shared by every set of plug-ins.
 
     Parameters
     ----------
@@ -695,6 +714,22 @@ def consensus_start(data, frames, plugins, model, *, quantile=CONSENSUS_QUANTILE
     frames = usable_frames(frames, data.n_frames)
     if frames.size > max_frames:
         frames = frames[np.linspace(0, frames.size - 1, max_frames).round().astype(int)]
+    # the base coefficients do not depend on the plug-ins: every fit of the same data (the
+    # discrepancy workflow fits one per set of effects) shares them
+    key = (frames.astype(np.intp).tobytes(), float(quantile), int(n_samples), int(seed))
+    kept = data.cache.setdefault("consensus", {})
+    if key not in kept:
+        kept[key] = _consensus_theta(data, frames, model, quantile, n_samples, seed)
+    theta = kept[key]
+    if theta is None:
+        return None
+    widths = _widths(data, plugins)
+    free_width = sum(w for p, w in zip(plugins, widths) if not p.needs_base)
+    return _split(np.r_[theta, np.zeros(free_width)], plugins, widths, model, BIG_TAU)
+
+
+def _consensus_theta(data, frames, model, quantile, n_samples, seed):
+    """:func:`consensus_start`'s base coefficients on ``frames``, or None."""
     guess = BaseModel(typical_lengths(data), np.ones(N_TYPES), np.full(N_TYPES, BIG_TAU))
     columns, _ = design(data, guess, (), model, frames)
     m = columns.shape[-1]
@@ -730,9 +765,7 @@ def consensus_start(data, frames, plugins, model, *, quantile=CONSENSUS_QUANTILE
         if not _valid(refit, model):
             break
         theta = refit
-    widths = _widths(data, plugins)
-    free_width = sum(w for p, w in zip(plugins, widths) if not p.needs_base)
-    return _split(np.r_[theta, np.zeros(free_width)], plugins, widths, model, BIG_TAU)
+    return read_only(theta)
 
 
 def check_cloth(data, *, spread=2.0, tolerance=0.01):
@@ -859,9 +892,9 @@ def _consensus_starts(data, frames, plugins, model):
     :data:`CONSENSUS_WINDOWS`, with each quantile of :data:`CONSENSUS_QUANTILES` (lazily:
     each version is smoothed only when its turn comes)."""
     for window in CONSENSUS_WINDOWS:
-        version = data if window == 0 else prepare(smoothed(data.trajectory, int(window)))
         for quantile in CONSENSUS_QUANTILES:
-            yield consensus_start(version, frames, plugins, model, quantile=quantile)
+            yield consensus_start(version(data, window), frames, plugins, model,
+                                  quantile=quantile)
 
 
 def _from_starts(data, frames, plugins, options, starts, best=None):

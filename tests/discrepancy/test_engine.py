@@ -293,3 +293,51 @@ def test_typical_lengths_are_measured_once_and_handed_out_as_copies():
     assert np.array_equal(first, expected)
     first[:] = 0.0                                   # the caller's own copy
     assert np.array_equal(regression.typical_lengths(data), expected)
+
+
+def _noisy_reference(scale_h=5e-3, seed=0):
+    trajectory = read_trajectory("synthetic_data/cloth/reference_tau0.1.npz")
+    h = regression.prepare(trajectory).h
+    noisy = trajectory.positions + np.random.default_rng(seed).normal(
+        scale=scale_h * h, size=trajectory.positions.shape)
+    noisy[:, 0, [0, -1]] = trajectory.positions[:, 0, [0, -1]]
+    return regression.prepare(type(trajectory)(
+        **{**trajectory.__dict__, "positions": noisy, "velocities": None}))
+
+
+def test_smoothed_versions_of_the_data_are_made_once_and_equal_fresh_ones():
+    data = _noisy_reference()
+    assert regression.version(data, 0) is data
+    smooth = regression.version(data, 11)
+    assert regression.version(data, 11) is smooth and regression.version(data, 7) is not smooth
+    fresh = regression.prepare(regression.smoothed(data.trajectory, 11))
+    for name in ("x", "v", "target", "mass", "free"):
+        assert np.array_equal(getattr(smooth, name), getattr(fresh, name), equal_nan=True)
+    assert regression.tau_data(data) is smooth          # noisy: the tau search smooths
+    assert regression.position_noise(data) == regression.position_noise(
+        regression.prepare(data.trajectory))            # kept, and as computed afresh
+    clean = regression.prepare(read_trajectory("synthetic_data/cloth/reference_tau0.1.npz"))
+    assert regression.tau_data(clean) is clean
+
+
+def test_consensus_coefficients_are_shared_by_every_set_of_plugins():
+    data = _noisy_reference(5e-4)
+    frames = np.arange(data.n_frames - 1)
+    drag = regression.Plugin("quadratic_drag", effects.LIBRARY["quadratic_drag"].basis)
+    mass = regression.Plugin("nonuniform_mass", effects.LIBRARY["nonuniform_mass"].basis, True)
+    alone = regression.consensus_start(data, frames, (), "5")
+    assert len(data.cache["consensus"]) == 1
+    with_plugins = regression.consensus_start(data, frames, (drag, mass), "5")
+    assert len(data.cache["consensus"]) == 1            # the same coefficients, kept
+    fresh = regression.consensus_start(regression.prepare(data.trajectory), frames,
+                                       (drag, mass), "5")
+    for got in (alone, with_plugins):
+        for a, b in zip(got[0], fresh[0]):
+            assert np.array_equal(a, b)
+    assert [(p.name, t.tolist()) for p, t in with_plugins[1]] == \
+        [(p.name, t.tolist()) for p, t in fresh[1]]
+    assert [p.name for p, _ in with_plugins[1]] == ["quadratic_drag", "nonuniform_mass"]
+    other = regression.consensus_start(data, frames, (), "5", quantile=0.1)
+    assert len(data.cache["consensus"]) == 2            # another quantile: its own
+    assert np.array_equal(other[0].k, regression.consensus_start(
+        regression.prepare(data.trajectory), frames, (), "5", quantile=0.1)[0].k)

@@ -336,6 +336,39 @@ def _frame_index(frames):
     return frames.astype(np.intp, copy=False)
 
 
+class Columns:
+    """Regressors (F, P, 3, m) held as their blocks side by side (base columns, then each
+    plug-in's), read like the array of the blocks concatenated without making it: a
+    selection of frames and particles is gathered from each block and joined, and
+    ``[..., cut]`` of one block's columns is that block. Both give the very numbers (and
+    layout) the concatenated array gives. Anything else reads the concatenated array."""
+
+    ndim = 4
+
+    def __init__(self, blocks):
+        self.blocks = tuple(blocks)
+        widths = [block.shape[-1] for block in self.blocks]
+        self.shape = self.blocks[0].shape[:-1] + (sum(widths),)
+        self._starts = np.cumsum([0] + widths)
+
+    def __getitem__(self, index):
+        if not isinstance(index, tuple):
+            index = (index,)
+        if len(index) == 2 and index[0] is Ellipsis and isinstance(index[1], slice):
+            start, stop, step = index[1].indices(self.shape[-1])
+            for block, first in zip(self.blocks, self._starts):
+                if step == 1 and start == first and stop == first + block.shape[-1]:
+                    return block
+        elif len(index) < self.ndim and not any(i is Ellipsis or i is None for i in index):
+            # leading axes only: each block's selection, joined along the columns
+            return np.concatenate([block[index] for block in self.blocks], axis=-1)
+        return np.asarray(self)[index]
+
+    def __array__(self, dtype=None, copy=None):
+        whole = np.concatenate(self.blocks, axis=-1)
+        return whole if dtype is None else whole.astype(dtype, copy=False)
+
+
 def design(data, base, plugins, model, frames=None):
     """Regressors of base and plug-ins on ``frames`` (all when None): (F, P, 3, m), and the
     column slice of each plug-in.
@@ -344,11 +377,13 @@ def design(data, base, plugins, model, frames=None):
     alone (the base columns are spring sums of the recorded positions): they are made once
     per plug-ins, model and frames and shared read-only (kept in ``data.cache``, the
     :data:`DESIGNS_KEPT` most recently used within :data:`DESIGNS_BYTES_KEPT`), since every
-    round of every start of a fit asks for the same ones."""
+    round of every start of a fit asks for the same ones. With one, they change with the
+    base: they come as :class:`Columns`, whose blocks are never copied into one array."""
     plugins = tuple(plugins)
     frames = _frame_index(frames)
     if any(plugin.needs_base for plugin in plugins):
-        return _design(data, base, plugins, model, frames)
+        blocks, slices = _design_blocks(data, base, plugins, model, frames)
+        return Columns(blocks), slices
     key = (model, tuple((plugin.name, plugin.basis) for plugin in plugins),
            None if frames is None else frames.tobytes())
     slices = data.cache.setdefault("design_slices", {})
@@ -363,16 +398,29 @@ def design(data, base, plugins, model, frames=None):
 
 
 def _design(data, base, plugins, model, frames):
+    blocks, slices = _design_blocks(data, base, plugins, model, frames)
+    return np.concatenate(blocks, axis=-1), slices
+
+
+def _design_blocks(data, base, plugins, model, frames):
+    """The blocks of the regressors (base columns, then each plug-in's) and the column
+    slice of each plug-in. The base columns depend on the recorded frames alone and are
+    kept per model and frames (the last :data:`SELECTIONS_KEPT`)."""
     q = state_frames(data, base, frames)
-    A, B = q.sums
-    blocks = [base_columns(A, B, data.mass, model)]
+
+    def base_block():
+        A, B = q.sums
+        return base_columns(A, B, data.mass, model)
+
+    blocks = [_kept(data, "base_columns", max_entries=SELECTIONS_KEPT).get(
+        (model, None if frames is None else frames.tobytes()), base_block)]
     slices, start = {}, blocks[0].shape[-1]
     for plugin in plugins:
         cols = q.columns(plugin)
         blocks.append(cols)
         slices[plugin.name] = slice(start, start + cols.shape[-1])
         start += cols.shape[-1]
-    return np.concatenate(blocks, axis=-1), slices
+    return blocks, slices
 
 
 def extra_force(terms, q):

@@ -341,3 +341,39 @@ def test_consensus_coefficients_are_shared_by_every_set_of_plugins():
     assert len(data.cache["consensus"]) == 2            # another quantile: its own
     assert np.array_equal(other[0].k, regression.consensus_start(
         regression.prepare(data.trajectory), frames, (), "5", quantile=0.1)[0].k)
+
+
+def test_columns_in_blocks_read_exactly_like_the_concatenated_array():
+    rng = np.random.default_rng(3)
+    blocks = [rng.normal(size=(7, 5, 3, w)) for w in (4, 1, 6)]
+    whole = np.concatenate(blocks, axis=-1)
+    columns = regression.Columns(blocks)
+    assert columns.shape == whole.shape and np.array_equal(np.asarray(columns), whole)
+    keep = rng.random(5) < 0.5
+    rows = rng.random((7, 5)) < 0.5
+    for index in ((2, keep), (2,), 2, (slice(None), keep), (slice(1, 4),), (rows,),
+                  (np.array([0, 3]), keep), (Ellipsis, slice(4, 5)), (Ellipsis, slice(5, 11)),
+                  (Ellipsis, slice(3, 6)), (2, keep, 1), (..., 0), (None, 1)):
+        got = columns[index]
+        expected = whole[index]
+        assert got.shape == expected.shape and np.array_equal(got, expected), index
+    assert columns[..., slice(4, 5)] is blocks[1]   # one block's columns: the block itself
+    gathered = columns[2, keep]   # what cluster_sums reads: the same layout, C order
+    assert gathered.flags.c_contiguous and gathered.tobytes() == whole[2, keep].tobytes()
+
+
+def test_a_base_dependent_design_gives_the_same_normal_equations_as_the_whole_array():
+    data = regression.prepare(read_trajectory("synthetic_data/cloth/reference_tau0.1.npz"))
+    base = regression.BaseModel(np.full(6, data.h), np.full(6, 4.0), np.full(6, 0.1))
+    plugins = [regression.Plugin("anisotropic_stiffness",
+                                 effects.LIBRARY["anisotropic_stiffness"].basis, True),
+               regression.Plugin("quadratic_drag", effects.LIBRARY["quadratic_drag"].basis)]
+    columns, slices = regression.design(data, base, plugins, "5")
+    assert isinstance(columns, regression.Columns)
+    whole, whole_slices = _fresh_design(data, base, plugins, "5")
+    assert slices == whole_slices
+    frames = regression.usable_frames(np.arange(data.n_frames), data.n_frames)
+    mask = np.random.default_rng(0).random((data.n_frames, data.x.shape[1])) < 0.8
+    for got, expected in zip(regression.cluster_sums(columns, data.target, frames, mask),
+                             regression.cluster_sums(whole, data.target, frames, mask)):
+        assert np.array_equal(got, expected)

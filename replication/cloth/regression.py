@@ -764,11 +764,16 @@ def consensus_start(data, frames, plugins, model, *, quantile=CONSENSUS_QUANTILE
         frames = frames[np.linspace(0, frames.size - 1, max_frames).round().astype(int)]
     # the base coefficients do not depend on the plug-ins: every fit of the same data (the
     # discrepancy workflow fits one per set of effects) shares them
-    key = (frames.astype(np.intp).tobytes(), float(quantile), int(n_samples), int(seed))
     kept = data.cache.setdefault("consensus", {})
-    if key not in kept:
-        kept[key] = _consensus_theta(data, frames, model, quantile, n_samples, seed)
-    theta = kept[key]
+    common = (frames.astype(np.intp).tobytes(), int(n_samples), int(seed))
+    if common + (float(quantile),) not in kept:
+        # the other quantiles of CONSENSUS_QUANTILES rank the same draws: ranked at once
+        quantiles = [float(quantile)] + [float(q) for q in CONSENSUS_QUANTILES
+                                         if common + (float(q),) not in kept
+                                         and float(q) != float(quantile)]
+        thetas = _consensus_thetas(data, frames, model, quantiles, n_samples, seed)
+        kept.update({common + (q,): theta for q, theta in zip(quantiles, thetas)})
+    theta = kept[common + (float(quantile),)]
     if theta is None:
         return None
     widths = _widths(data, plugins)
@@ -776,8 +781,10 @@ def consensus_start(data, frames, plugins, model, *, quantile=CONSENSUS_QUANTILE
     return _split(np.r_[theta, np.zeros(free_width)], plugins, widths, model, BIG_TAU)
 
 
-def _consensus_theta(data, frames, model, quantile, n_samples, seed):
-    """:func:`consensus_start`'s base coefficients on ``frames``, or None."""
+def _consensus_thetas(data, frames, model, quantiles, n_samples, seed):
+    """:func:`consensus_start`'s base coefficients on ``frames`` for each of ``quantiles``
+    (or None), from one set of draws: each quantile's ranking is the one it would have alone
+    (``np.quantile`` of several quantiles gives each as it gives it alone)."""
     guess = BaseModel(typical_lengths(data), np.ones(N_TYPES), np.full(N_TYPES, BIG_TAU))
     columns, _ = design(data, guess, (), model, frames)
     m = columns.shape[-1]
@@ -786,24 +793,31 @@ def _consensus_theta(data, frames, model, quantile, n_samples, seed):
     usable = np.all(np.isfinite(A), axis=(1, 2)) & np.all(np.isfinite(y), axis=1)
     A, y = A[usable], y[usable]
     if A.shape[0] < 2:
-        return None
+        return [None] * len(quantiles)
 
     def norms(theta):
         return np.linalg.norm(np.einsum("nij,j->ni", A, theta) - y, axis=1)
 
     rng = np.random.default_rng(seed)
-    best = None
+    best = [None] * len(quantiles)
     for _ in range(n_samples):
         pick = rng.choice(A.shape[0], 2, replace=False)
         theta = np.linalg.lstsq(A[pick].reshape(-1, m), y[pick].reshape(-1), rcond=None)[0]
         if not _valid(theta, model):
             continue
-        score = float(np.quantile(norms(theta), quantile))
-        if best is None or score < best[0]:
-            best = (score, theta)
-    if best is None:
-        return None
-    theta = best[1]
+        scores = np.quantile(norms(theta), quantiles)
+        for k, score in enumerate(scores.tolist()):
+            if best[k] is None or score < best[k][0]:
+                best[k] = (score, theta)
+    return [None if found is None else _consensus_refined(norms, A, y, found[1], quantile,
+                                                          model)
+            for found, quantile in zip(best, quantiles)]
+
+
+def _consensus_refined(norms, A, y, theta, quantile, model):
+    """Refits of ``theta`` on the particle-frames within 3 times the ``quantile`` of the
+    residual norms (:func:`consensus_start`)."""
+    m = A.shape[-1]
     for _ in range(10):
         r = norms(theta)
         keep = r <= max(3.0 * float(np.quantile(r, quantile)), 1e-300)

@@ -326,9 +326,10 @@ def test_consensus_coefficients_are_shared_by_every_set_of_plugins():
     drag = regression.Plugin("quadratic_drag", effects.LIBRARY["quadratic_drag"].basis)
     mass = regression.Plugin("nonuniform_mass", effects.LIBRARY["nonuniform_mass"].basis, True)
     alone = regression.consensus_start(data, frames, (), "5")
-    assert len(data.cache["consensus"]) == 1
+    assert regression.CONSENSUS_QUANTILES == (0.05, 0.1)
+    assert len(data.cache["consensus"]) == 2            # both quantiles rank the same draws
     with_plugins = regression.consensus_start(data, frames, (drag, mass), "5")
-    assert len(data.cache["consensus"]) == 1            # the same coefficients, kept
+    assert len(data.cache["consensus"]) == 2            # the same coefficients, kept
     fresh = regression.consensus_start(regression.prepare(data.trajectory), frames,
                                        (drag, mass), "5")
     for got in (alone, with_plugins):
@@ -337,10 +338,27 @@ def test_consensus_coefficients_are_shared_by_every_set_of_plugins():
     assert [(p.name, t.tolist()) for p, t in with_plugins[1]] == \
         [(p.name, t.tolist()) for p, t in fresh[1]]
     assert [p.name for p, _ in with_plugins[1]] == ["quadratic_drag", "nonuniform_mass"]
-    other = regression.consensus_start(data, frames, (), "5", quantile=0.1)
-    assert len(data.cache["consensus"]) == 2            # another quantile: its own
-    assert np.array_equal(other[0].k, regression.consensus_start(
-        regression.prepare(data.trajectory), frames, (), "5", quantile=0.1)[0].k)
+    for quantile in (0.1, 0.2):                          # kept already; another one
+        other = regression.consensus_start(data, frames, (), "5", quantile=quantile)
+        anew = regression.prepare(data.trajectory)
+        alone_fresh = regression.consensus_start(anew, frames, (), "5", quantile=quantile)
+        assert len(anew.cache["consensus"]) == 3 - (quantile == 0.1)
+        for a, b in zip(other[0], alone_fresh[0]):
+            assert np.array_equal(a, b)
+    assert len(data.cache["consensus"]) == 3
+    with_plugins[0].rest[:] = 0.0                       # a start is the caller's own
+    again = regression.consensus_start(data, frames, (drag, mass), "5")
+    assert np.array_equal(again[0].rest, fresh[0].rest)
+
+
+def test_consensus_ranks_several_quantiles_as_each_alone():
+    data = _noisy_reference(5e-4)
+    frames = np.arange(data.n_frames - 1)
+    together = regression._consensus_thetas(data, frames, "5", [0.05, 0.1, 0.3], 60, 1)
+    for quantile, theta in zip((0.05, 0.1, 0.3), together):
+        alone = regression._consensus_thetas(data, frames, "5", [quantile], 60, 1)[0]
+        assert np.array_equal(theta, alone)
+    assert not np.array_equal(together[0], together[2])
 
 
 def test_columns_in_blocks_read_exactly_like_the_concatenated_array():

@@ -219,7 +219,14 @@ def smoothed(trajectory, window, polyorder=3):
 def version(data, window):
     """``data`` smoothed over ``window`` frames (:func:`smoothed`) and prepared; ``data``
     itself for ``window=0``. Made once per ``data`` and window and kept in its cache: the
-    starts and the tau search of every fit of the same data ask for the same versions."""
+    starts and the tau search of every fit of the same data ask for the same versions.
+
+    Parameters
+    ----------
+    data : Data
+    window : int
+        Savitzky-Golay window in frames (0: the data as recorded).
+    """
     window = int(window)
     if window == 0:
         return data
@@ -378,7 +385,17 @@ def design(data, base, plugins, model, frames=None):
     per plug-ins, model and frames and shared read-only (kept in ``data.cache``, the
     :data:`DESIGNS_KEPT` most recently used within :data:`DESIGNS_BYTES_KEPT`), since every
     round of every start of a fit asks for the same ones. With one, they change with the
-    base: they come as :class:`Columns`, whose blocks are never copied into one array."""
+    base: they come as :class:`Columns`, whose blocks are never copied into one array.
+
+    Parameters
+    ----------
+    data : Data
+    base : BaseModel
+        Rest lengths and stiffnesses the plug-ins that ``needs_base`` are built at.
+    plugins : sequence of Plugin
+    model : {"5", "18"}
+    frames : (F,) int or bool array_like, optional
+    """
     plugins = tuple(plugins)
     frames = _frame_index(frames)
     if any(plugin.needs_base for plugin in plugins):

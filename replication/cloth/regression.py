@@ -372,6 +372,8 @@ class Columns:
         return np.asarray(self)[index]
 
     def __array__(self, dtype=None, copy=None):
+        if copy is False:   # numpy 2's request for no copy: the joined array is always new
+            raise ValueError("Columns: reading the blocks as one array makes a copy")
         whole = np.concatenate(self.blocks, axis=-1)
         return whole if dtype is None else whole.astype(dtype, copy=False)
 
@@ -399,45 +401,45 @@ def design(data, base, plugins, model, frames=None):
     plugins = tuple(plugins)
     frames = _frame_index(frames)
     if any(plugin.needs_base for plugin in plugins):
-        blocks, slices = _design_blocks(data, base, plugins, model, frames)
-        return Columns(blocks), slices
+        blocks = _design_blocks(data, base, plugins, model, frames)
+        return Columns(blocks), _plugin_slices(plugins, _block_widths(blocks))
     key = (model, tuple((plugin.name, plugin.basis) for plugin in plugins),
            None if frames is None else frames.tobytes())
-    slices = data.cache.setdefault("design_slices", {})
 
     def make():
-        columns, slices[key] = _design(data, base, plugins, model, frames)
-        return columns
+        blocks = _design_blocks(data, base, plugins, model, frames)
+        return np.concatenate(blocks, axis=-1), _block_widths(blocks)
 
-    columns = _kept(data, "designs", max_entries=DESIGNS_KEPT,
-                    max_bytes=DESIGNS_BYTES_KEPT).get(key, make)
-    return columns, dict(slices[key])
+    columns, widths = _kept(data, "designs", max_entries=DESIGNS_KEPT,
+                            max_bytes=DESIGNS_BYTES_KEPT).get(key, make)
+    return columns, _plugin_slices(plugins, widths)
 
 
-def _design(data, base, plugins, model, frames):
-    blocks, slices = _design_blocks(data, base, plugins, model, frames)
-    return np.concatenate(blocks, axis=-1), slices
+def _block_widths(blocks):
+    """The number of columns of each block, as an int array."""
+    return np.array([block.shape[-1] for block in blocks], dtype=np.intp)
+
+
+def _plugin_slices(plugins, widths):
+    """``{plugin name: column slice}`` of the blocks of ``widths`` (base, then plug-ins)."""
+    ends = np.cumsum(widths)
+    return {plugin.name: slice(int(start), int(stop))
+            for plugin, start, stop in zip(plugins, ends[:-1], ends[1:])}
 
 
 def _design_blocks(data, base, plugins, model, frames):
-    """The blocks of the regressors (base columns, then each plug-in's) and the column
-    slice of each plug-in. The base columns depend on the recorded frames alone and are
-    kept per model and frames (the last :data:`SELECTIONS_KEPT`)."""
+    """The blocks of the regressors: base columns, then each plug-in's. The base columns
+    depend on the recorded frames alone and are kept per model and frames (the last
+    :data:`SELECTIONS_KEPT`)."""
     q = state_frames(data, base, frames)
 
     def base_block():
         A, B = q.sums
         return base_columns(A, B, data.mass, model)
 
-    blocks = [_kept(data, "base_columns", max_entries=SELECTIONS_KEPT).get(
-        (model, None if frames is None else frames.tobytes()), base_block)]
-    slices, start = {}, blocks[0].shape[-1]
-    for plugin in plugins:
-        cols = q.columns(plugin)
-        blocks.append(cols)
-        slices[plugin.name] = slice(start, start + cols.shape[-1])
-        start += cols.shape[-1]
-    return blocks, slices
+    return [_kept(data, "base_columns", max_entries=SELECTIONS_KEPT).get(
+        (model, None if frames is None else frames.tobytes()), base_block),
+        *(q.columns(plugin) for plugin in plugins)]
 
 
 def extra_force(terms, q):

@@ -221,9 +221,11 @@ def test_kept_plugin_columns_stay_within_their_byte_bound(monkeypatch):
 
 
 def _fresh_design(data, base, plugins, model, frames=None):
-    """The regressors built from scratch, without anything kept in ``data.cache``."""
-    return regression._design(regression.prepare(data.trajectory), base, tuple(plugins),
-                              model, regression._frame_index(frames))
+    """The regressors built from scratch (on a new ``Data``, with nothing kept in its
+    cache), as one array, and the column slice of each plug-in."""
+    columns, slices = regression.design(regression.prepare(data.trajectory), base,
+                                        tuple(plugins), model, frames)
+    return np.asarray(columns), slices
 
 
 def test_a_design_without_base_dependent_plugins_is_made_once_and_shared_read_only(
@@ -239,6 +241,11 @@ def test_a_design_without_base_dependent_plugins_is_made_once_and_shared_read_on
     assert again is first and slices_again == slices
     fresh, fresh_slices = _fresh_design(data, base, plugins, "5")
     assert np.array_equal(first, fresh) and slices == fresh_slices
+    q = regression.state_frames(data, base)
+    for plugin in plugins:   # each plug-in's slice holds its columns, the rest the base's
+        assert np.array_equal(first[..., slices[plugin.name]], q.columns(plugin))
+    assert slices["quadratic_drag"].start == regression.n_base("5") and \
+        slices["body_force"].stop == first.shape[-1]
     with pytest.raises(ValueError):
         first[0, 0, 0, 0] = 1.0
     slices_again["quadratic_drag"] = slice(0, 1)   # the caller's own copy
@@ -273,7 +280,9 @@ def test_a_design_with_a_base_dependent_plugin_follows_the_base():
 def test_kept_designs_stay_within_their_bounds(monkeypatch):
     data = regression.prepare(read_trajectory("synthetic_data/cloth/reference_tau0.1.npz"))
     base = regression.BaseModel(np.full(6, data.h), np.full(6, 4.0), np.full(6, 0.1))
-    one = regression.design(regression.prepare(data.trajectory), base, (), "5", [5])[0].nbytes
+    alone = regression.prepare(data.trajectory)
+    regression.design(alone, base, (), "5", [5])
+    one = alone.cache["designs"].nbytes   # one kept design: its columns and their widths
     monkeypatch.setattr(regression, "DESIGNS_BYTES_KEPT", 2 * one)
     for frame in range(5, 9):
         regression.design(data, base, (), "5", [frame])
@@ -378,6 +387,8 @@ def test_columns_in_blocks_read_exactly_like_the_concatenated_array():
     assert columns[..., slice(4, 5)] is blocks[1]   # one block's columns: the block itself
     gathered = columns[2, keep]   # what cluster_sums reads: the same layout, C order
     assert gathered.flags.c_contiguous and gathered.tobytes() == whole[2, keep].tobytes()
+    with pytest.raises(ValueError):   # numpy 2's copy=False: joining the blocks copies
+        np.array(columns, copy=False)
 
 
 def test_a_base_dependent_design_gives_the_same_normal_equations_as_the_whole_array():

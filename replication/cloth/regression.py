@@ -348,15 +348,16 @@ class Columns:
     plug-in's), read like the array of the blocks concatenated without making it: a
     selection of frames and particles is gathered from each block and joined, and
     ``[..., cut]`` of one block's columns is that block. Both give the very numbers (and
-    layout) the concatenated array gives. Anything else reads the concatenated array."""
+    layout) the concatenated array gives. Anything else reads the concatenated array.
+    ``widths`` holds the number of columns of each block."""
 
     ndim = 4
 
     def __init__(self, blocks):
         self.blocks = tuple(blocks)
-        widths = [block.shape[-1] for block in self.blocks]
-        self.shape = self.blocks[0].shape[:-1] + (sum(widths),)
-        self._starts = np.cumsum([0] + widths)
+        self.widths = _block_widths(self.blocks)
+        self.shape = self.blocks[0].shape[:-1] + (int(self.widths.sum()),)
+        self._starts = np.r_[0, np.cumsum(self.widths)]
 
     def __getitem__(self, index):
         if not isinstance(index, tuple):
@@ -401,8 +402,8 @@ def design(data, base, plugins, model, frames=None):
     plugins = tuple(plugins)
     frames = _frame_index(frames)
     if any(plugin.needs_base for plugin in plugins):
-        blocks = _design_blocks(data, base, plugins, model, frames)
-        return Columns(blocks), _plugin_slices(plugins, _block_widths(blocks))
+        columns = Columns(_design_blocks(data, base, plugins, model, frames))
+        return columns, _plugin_slices(plugins, columns.widths)
     key = (model, tuple((plugin.name, plugin.basis) for plugin in plugins),
            None if frames is None else frames.tobytes())
 
